@@ -1,0 +1,110 @@
+"""One batch runner for every batched workload (multistart fits, screening, Sobol, speed sweeps).
+
+`batch_runner(fn)` returns a compiled function that evaluates `fn` over the leading axis of a
+pytree batch: `vmap` over chunks of `chunk_size` members, `lax.map` over the chunks (bounded
+memory), and the chunks spread over the devices with `jax.shard_map` (on a CPU, expose several
+host devices with `XLA_FLAGS=--xla_force_host_platform_device_count=N` before importing JAX).
+A member whose output is non-finite, or flagged by `failure_fn`, is reported in
+`BatchResult.failed`; nothing raises because of one member (use `throw=False` in solves).
+"""
+
+import math
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import PartitionSpec
+
+
+class BatchResult(eqx.Module):
+    """Outputs of a batch (leading axis = member) and a per-member failure flag."""
+
+    outputs: object
+    failed: jax.Array
+
+
+def _all_finite(tree):
+    leaves = [x for x in jax.tree.leaves(tree) if jnp.issubdtype(jnp.asarray(x).dtype, jnp.inexact)]
+    if not leaves:
+        return jnp.asarray(True)
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
+
+
+def _batch_size(batch) -> int:
+    sizes = {np.shape(x)[0] for x in jax.tree.leaves(batch)}
+    if len(sizes) != 1:
+        raise ValueError(f"`batch` leaves must share one leading (member) axis, got sizes {sorted(sizes)}")
+    return sizes.pop()
+
+
+def _pad(batch, total: int):
+    def pad_leaf(x):
+        x = jnp.asarray(x)
+        extra = total - x.shape[0]
+        if extra == 0:
+            return x
+        return jnp.concatenate([x, jnp.repeat(x[-1:], extra, axis=0)])
+
+    return jax.tree.map(pad_leaf, batch)
+
+
+def batch_runner(
+    fn: Callable,
+    *,
+    chunk_size: int | None = None,
+    devices=None,
+    failure_fn: Callable | None = None,
+) -> Callable:
+    """Compile `fn` (one member -> pytree) into `run(batch) -> BatchResult`.
+
+    **Arguments:**
+    - `fn`: pure function of one member of the batch.
+    - `chunk_size`: members evaluated together by `vmap` on one device (default: all of the
+      device's share in one chunk).
+    - `devices`: devices to shard over (default `jax.devices()`).
+    - `failure_fn`: optional `output -> bool` marking failed members (e.g. a solver status).
+    """
+    devices = list(devices) if devices is not None else jax.devices()
+    n_dev = len(devices)
+    mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
+
+    def member(x):
+        out = fn(x)
+        failed = jnp.logical_not(_all_finite(out))
+        if failure_fn is not None:
+            failed = failed | jnp.asarray(failure_fn(out))
+        return out, failed
+
+    def local(chunked):
+        return jax.lax.map(jax.vmap(member), chunked)
+
+    @jax.jit
+    def sharded(chunked):
+        spec = PartitionSpec(None, "batch")
+        return jax.shard_map(local, mesh=mesh, in_specs=spec, out_specs=spec)(chunked)
+
+    def run(batch) -> BatchResult:
+        n = _batch_size(batch)
+        per_device = math.ceil(n / n_dev)
+        chunk = min(chunk_size or per_device, per_device)
+        n_chunks = math.ceil(per_device / chunk)
+        total = n_chunks * chunk * n_dev
+        padded = _pad(batch, total)
+        # (n_chunks, n_dev * chunk, ...): chunk k of every device sits in row k.
+        chunked = jax.tree.map(
+            lambda x: x.reshape(n_dev, n_chunks, chunk, *x.shape[1:])
+            .swapaxes(0, 1)
+            .reshape(n_chunks, n_dev * chunk, *x.shape[1:]),
+            padded,
+        )
+        out, failed = sharded(chunked)
+
+        def unchunk(x):
+            x = x.reshape(n_chunks, n_dev, chunk, *x.shape[2:]).swapaxes(0, 1)
+            return x.reshape(total, *x.shape[3:])[:n]
+
+        return BatchResult(outputs=jax.tree.map(unchunk, out), failed=unchunk(failed))
+
+    return run

@@ -1,0 +1,21 @@
+"""Wheel-rail contact: cone-on-rail geometry, Hertz normal contact, Kalker creep (ref. doc 1-3)."""
+
+from ._creep import (
+    linear_creep_forces as linear_creep_forces,
+    shen_hedrick_elkins as shen_hedrick_elkins,
+)
+from ._geometry import ConeGeometry as ConeGeometry, cone_geometry as cone_geometry
+from ._hertz import (
+    HertzContact as HertzContact,
+    cone_on_rail_curvatures as cone_on_rail_curvatures,
+    ellipe as ellipe,
+    ellipk as ellipk,
+    hertz_axis_ratio as hertz_axis_ratio,
+    hertz_contact as hertz_contact,
+)
+from ._kalker import (
+    CreepCoefficients as CreepCoefficients,
+    creep_coefficients as creep_coefficients,
+    kalker_coefficients as kalker_coefficients,
+    shear_modulus as shear_modulus,
+)

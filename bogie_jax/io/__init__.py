@@ -1,0 +1,4 @@
+"""File input and output (the only part of the package that touches files)."""
+
+from ._track_csv import load_track_csv as load_track_csv, save_track_csv as save_track_csv
+from ._trajectory import save_trajectory as save_trajectory

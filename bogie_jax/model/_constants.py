@@ -1,0 +1,67 @@
+"""Quantities derived once per parameter set (outside the time loop), differentiably."""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ..contact import (
+    cone_geometry,
+    cone_on_rail_curvatures,
+    ConeGeometry,
+    creep_coefficients,
+    CreepCoefficients,
+    hertz_contact,
+)
+from ..params import BogieParams
+from ._layout import GRAVITY
+
+
+class ModelConstants(eqx.Module):
+    """Derived constants of the bogie model.
+
+    - `geometry`: cone-on-circular-rail coefficients lambda, sigma, epsilon, zeta, xi
+      (reference doc 1.2).
+    - `primary_preload` [N]: static vertical force of each primary spring,
+      (m_frame + m_carbody) g / 4.
+    - `secondary_preload` [N]: static vertical force of each secondary spring, m_carbody g / 2.
+    - `static_normal_load` [N]: static normal force per wheel,
+      (m_wheelset g / 2 + 2 F_primary / 2) / cos(delta0) (reference doc 4.5).
+    - `creep`: Kalker creep coefficients f11, f22 [N], f23 [N m] at the static load, Hertz patch
+      from the nominal curvatures (reference doc 2, 3), times `contact.creep_factor`.
+    """
+
+    geometry: ConeGeometry
+    primary_preload: jnp.ndarray
+    secondary_preload: jnp.ndarray
+    static_normal_load: jnp.ndarray
+    creep: CreepCoefficients
+
+
+def model_constants(params: BogieParams) -> ModelConstants:
+    """Derive the `ModelConstants` of `params` (pure, differentiable)."""
+    c = params.contact
+    m = params.masses
+    geometry = cone_geometry(
+        c.wheel_radius, c.contact_semi_distance, c.cone_slope, c.rail_head_radius
+    )
+    primary_preload = (m.frame.mass + m.carbody_mass) * GRAVITY / 4
+    secondary_preload = m.carbody_mass * GRAVITY / 2
+    vertical_wheel_load = (m.wheelset.mass * GRAVITY + 2 * primary_preload) / 2
+    normal_load = vertical_wheel_load / jnp.cos(geometry.cone_angle)
+    curv_a, curv_b = cone_on_rail_curvatures(
+        c.wheel_radius, geometry.cone_angle, c.rail_head_radius
+    )
+    patch = hertz_contact(normal_load, curv_a, curv_b, c.young_modulus, c.poisson_ratio)
+    shear_modulus = c.young_modulus / (2 * (1 + c.poisson_ratio))
+    creep = creep_coefficients(patch.a, patch.b, shear_modulus, c.poisson_ratio)
+    creep = CreepCoefficients(
+        f11=c.creep_factor * creep.f11,
+        f22=c.creep_factor * creep.f22,
+        f23=c.creep_factor * creep.f23,
+    )
+    return ModelConstants(
+        geometry=geometry,
+        primary_preload=jnp.asarray(primary_preload),
+        secondary_preload=jnp.asarray(secondary_preload),
+        static_normal_load=jnp.asarray(normal_load),
+        creep=creep,
+    )

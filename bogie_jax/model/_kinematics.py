@@ -1,0 +1,117 @@
+"""Body kinematics: frame points, wheelset constraint coordinates (paper eq. 2-5), contact points.
+
+Track axes: x forward, y left, z up, origin at rail level on the track centreline, moving with the
+bogie at constant speed v. Wheelset 1 (leading) sits at x = +a, wheelset 2 at x = -a.
+Per-wheelset functions take the wheelset's lateral displacement `y` [m], yaw `psi` [rad] and the
+track irregularity under it, `w` (3,): alignment d_y [m], vertical level d_z [m], cross level
+gamma_d [rad]. e0 is HALF the distance between the contact points (the paper uses the full one).
+"""
+
+import jax
+import jax.numpy as jnp
+
+from ..params import BogieParams
+from ._constants import ModelConstants
+from ._rotations import rot_x, rot_y, rot_z
+from ._smallmath import matmul, matvec, rows_times
+
+
+E_X = jnp.array([1.0, 0.0, 0.0])
+E_Y = jnp.array([0.0, 1.0, 0.0])
+E_Z = jnp.array([0.0, 0.0, 1.0])
+SIDES = jnp.array([1.0, -1.0])  # left (+y), right (-y)
+
+
+def axle_positions(params: BogieParams):
+    """Longitudinal positions of the wheelsets relative to the frame centre [m], shape (2,)."""
+    a = params.geometry.semi_wheelbase
+    return jnp.stack([a, -a])
+
+
+# ---------------------------------------------------------------------------------------- frame
+def frame_rotation(angles):
+    """Frame rotation matrix R = Rz(yaw) Ry(pitch) Rx(roll) for angles (roll, pitch, yaw)."""
+    return matmul(matmul(rot_z(angles[2]), rot_y(angles[1])), rot_x(angles[0]))
+
+
+def frame_points(q, body_points, params: BogieParams):
+    """Positions [m] of frame-fixed points (n, 3) given relative to the CG in frame axes."""
+    cg = jnp.stack([q[0], q[1], params.geometry.frame_cg_height + q[2]])
+    return cg + rows_times(body_points, frame_rotation(q[3:6]))
+
+
+def frame_body_rates_matrix(angles):
+    """E_b with omega_body = E_b (roll_dot, pitch_dot, yaw_dot) for the z-y-x Cardan sequence."""
+    rx_t, ry_t = rot_x(angles[0]).T, rot_y(angles[1]).T
+    return jnp.stack([E_X, matvec(rx_t, E_Y), matvec(rx_t, matvec(ry_t, E_Z))], axis=1)
+
+
+# ------------------------------------------------------------------------ one wheelset (eq. 2-5)
+def relative_lateral(y, w, r0):
+    """Lateral displacement relative to the rolled track, u_y - d_y + r0 gamma_d [m]."""
+    return y - w[0] + r0 * w[2]
+
+
+def height(y, psi, w, params: BogieParams, const: ModelConstants):
+    """Rise of the wheelset centre above r0 [m], paper eq. 2."""
+    g = const.geometry
+    r0 = params.contact.wheel_radius
+    y_rel = relative_lateral(y, w, r0)
+    return (
+        w[1]
+        - 0.5 * r0 * w[2] ** 2
+        + 0.5 * g.vertical_lateral_coefficient * y_rel**2
+        - 0.5 * g.vertical_yaw_coefficient * psi**2
+    )
+
+
+def roll(y, w, params: BogieParams, const: ModelConstants):
+    """Wheelset roll angle [rad], paper eq. 3."""
+    e0 = params.contact.contact_semi_distance
+    y_rel = relative_lateral(y, w, params.contact.wheel_radius)
+    return w[2] + const.geometry.roll_coefficient / e0 * y_rel
+
+
+def rotation(y, psi, w, params, const):
+    """Non-spinning wheelset rotation matrix Rz(yaw) Rx(roll)."""
+    return matmul(rot_z(psi), rot_x(roll(y, w, params, const)))
+
+
+def centre(y, psi, w, x, params: BogieParams, const: ModelConstants):
+    """Wheelset centre [m] at longitudinal position `x`."""
+    return jnp.stack([x, y, params.contact.wheel_radius + height(y, psi, w, params, const)])
+
+
+def angular_velocity(y, psi, yd, psid, w, wd, params, const, spin):
+    """Angular velocity [rad/s] with the constant spin `spin` = v/r0 about the axle."""
+    phi, phi_rate = jax.jvp(lambda y_, w_: roll(y_, w_, params, const), (y, w), (yd, wd))
+    rz = rot_z(psi)
+    return psid * E_Z + phi_rate * matvec(rz, E_X) + spin * matvec(rz, matvec(rot_x(phi), E_Y))
+
+
+def rolling_radii(y, w, params: BogieParams, const: ModelConstants):
+    """Rolling radii (left, right) r = r0 +- lambda y_rel [m], paper eq. 4."""
+    r0 = params.contact.wheel_radius
+    return r0 + const.geometry.conicity * relative_lateral(y, w, r0) * SIDES
+
+
+def contact_normals(y, w, params: BogieParams, const: ModelConstants):
+    """Unit contact normals (rail to wheel) (2 sides, 3), paper eq. 5.
+
+    tan(delta) = tan(delta0) +- (eps/e0) y_rel is the contact angle in the track plane; the track
+    plane is rolled by the cross level gamma_d.
+    """
+    e0 = params.contact.contact_semi_distance
+    y_rel = relative_lateral(y, w, params.contact.wheel_radius)
+    slope = params.contact.cone_slope + const.geometry.contact_angle_coefficient / e0 * y_rel * SIDES
+    delta = jnp.arctan(slope)
+    local = jnp.stack([jnp.zeros(2), -SIDES * jnp.sin(delta), jnp.cos(delta)], axis=-1)
+    return rows_times(local, rot_x(w[2]))
+
+
+def contact_offsets(y, psi, w, params: BogieParams, const: ModelConstants):
+    """Contact points relative to the centre [m], R_w (0, +-e0, -r) (2 sides, 3)."""
+    e0 = params.contact.contact_semi_distance
+    radii = rolling_radii(y, w, params, const)
+    local = jnp.stack([jnp.zeros(2), SIDES * e0, -radii], axis=-1)
+    return rows_times(local, rotation(y, psi, w, params, const))

@@ -1,0 +1,89 @@
+"""Linear stability: eigenvalues of the Jacobian of the vector field at the static equilibrium
+on a perfect track, swept over speed; the linear critical (hunting) speed and frequency."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ..params import BogieParams, ModelOptions
+from ..track import perfect_track
+from ._dynamics import build_model, vector_field
+from ._layout import N_DOF
+
+
+class StabilitySweep(eqx.Module):
+    """Eigenvalues [1/s] (n_speeds, 20) and the largest real part per speed."""
+
+    speeds: jax.Array
+    eigenvalues: jax.Array
+    max_real_part: jax.Array
+
+
+class CriticalSpeed(eqx.Module):
+    """Linear critical speed [m/s] and the frequency [Hz] of the mode that becomes unstable.
+
+    `found` is False when no crossing lies inside the swept range (`speed` is then NaN).
+    """
+
+    speed: jax.Array
+    frequency: jax.Array
+    found: jax.Array
+
+
+def system_matrix(params: BogieParams, speed, options: ModelOptions = ModelOptions()):
+    """Jacobian d(dy/dt)/dy (20, 20) at y = 0 on a perfect track (by `jax.jacfwd`)."""
+    model = build_model(params, speed=speed, track=perfect_track(), options=options)
+    return jax.jacfwd(vector_field, argnums=1)(0.0, jnp.zeros(2 * N_DOF), model)
+
+
+def eigenvalues(params: BogieParams, speed, options: ModelOptions = ModelOptions()):
+    """Eigenvalues [1/s] of the linearised bogie at `speed` [m/s]."""
+    return jnp.linalg.eigvals(system_matrix(params, speed, options))
+
+
+def stability_sweep(params: BogieParams, speeds, options: ModelOptions = ModelOptions()):
+    """Eigenvalues at each speed of `speeds` [m/s] (vmapped)."""
+    speeds = jnp.asarray(speeds, dtype=float)
+    eig = jax.vmap(lambda v: eigenvalues(params, v, options))(speeds)
+    return StabilitySweep(speeds=speeds, eigenvalues=eig, max_real_part=jnp.max(eig.real, axis=1))
+
+
+def _leading_real_part(params, speed, options):
+    return jnp.max(eigenvalues(params, speed, options).real)
+
+
+def critical_speed(
+    params: BogieParams,
+    *,
+    v_min: float = 5.0,
+    v_max: float = 150.0,
+    n_grid: int = 30,
+    bisections: int = 40,
+    options: ModelOptions = ModelOptions(),
+) -> CriticalSpeed:
+    """Lowest speed in [v_min, v_max] [m/s] where the largest eigenvalue real part crosses zero.
+
+    A grid of `n_grid` speeds brackets the first crossing, then bisection refines it.
+    """
+    sweep = stability_sweep(params, jnp.linspace(v_min, v_max, n_grid), options)
+    unstable = sweep.max_real_part > 0
+    found = jnp.any(unstable)
+    first = jnp.argmax(unstable)
+    hi = sweep.speeds[first]
+    lo = jnp.where(first > 0, sweep.speeds[jnp.maximum(first - 1, 0)], v_min)
+
+    def bisect(_, bracket):
+        a, b = bracket
+        mid = 0.5 * (a + b)
+        above = _leading_real_part(params, mid, options) > 0
+        return jnp.where(above, a, mid), jnp.where(above, mid, b)
+
+    lo, hi = jax.lax.fori_loop(0, bisections, bisect, (lo, hi))
+    eig = eigenvalues(params, hi, options)
+    frequency = jnp.abs(eig[jnp.argmax(eig.real)].imag) / (2 * jnp.pi)
+    nan = jnp.nan
+    return CriticalSpeed(
+        speed=jnp.where(found, 0.5 * (lo + hi), nan),
+        frequency=jnp.where(found, frequency, nan),
+        found=found,
+    )

@@ -1,0 +1,42 @@
+"""`BogieParams`: the complete, typed parameter tree of the bogie model, and model options."""
+
+import equinox as eqx
+
+from ._groups import (
+    Geometry,
+    Masses,
+    PrimarySuspension,
+    SecondarySuspension,
+    WheelRailContact,
+    YawDampers,
+)
+
+
+class ModelOptions(eqx.Module):
+    """Switches for the nonlinear model options (all off by default: the paper's model is linear
+    in its suspension and creep laws). These are compile-time facts (static).
+
+    - `creep_saturation`: Shen-Hedrick-Elkins saturation of the Kalker creep forces with the
+      friction coefficient `contact.friction` (reference doc 2.1).
+    - `flange_contact`: a lateral flange spring `contact.flange_stiffness` beyond
+      `contact.flange_clearance` of wheelset displacement relative to the track.
+    - `nonlinear_dampers`: blow-off characteristic of the anti-yaw dampers (`YawDampers`).
+    """
+
+    creep_saturation: bool = eqx.field(default=False, static=True)
+    flange_contact: bool = eqx.field(default=False, static=True)
+    nonlinear_dampers: bool = eqx.field(default=False, static=True)
+
+
+class BogieParams(eqx.Module):
+    """All physical parameters of the bogie: a pytree whose leaves are scalars in SI units.
+
+    Parameter names are the tree paths, e.g. `primary.kz` or `masses.frame.mass`.
+    """
+
+    masses: Masses
+    geometry: Geometry
+    contact: WheelRailContact
+    primary: PrimarySuspension
+    secondary: SecondarySuspension
+    yaw_dampers: YawDampers

@@ -1,0 +1,126 @@
+"""`simulate`: integrate the bogie model with diffrax (the only place that calls diffeqsolve)."""
+
+import math
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ._precision import warn_if_float32
+from ._validation import check_positive_int, check_range
+from .model import accelerations, build_model, N_DOF, vector_field
+from .params import BogieParams, ModelOptions
+from .track import TrackIrregularity
+
+
+MAX_SPEED = 150.0  # [m/s] upper end of the valid speed range
+
+
+class Trajectory(eqx.Module):
+    """A simulated run.
+
+    - `ts` [s] (n,), `q` (n, 10), `qd` (n, 10), `qdd` (n, 10): coordinates, velocities and
+      accelerations (from the equations of motion, not finite differences) in the units of
+      `bogie_jax.model.DOF_UNITS` (per s, per s^2);
+    - `speed` [m/s];
+    - `result`: diffrax `RESULTS` of the solve (check `successful`);
+    - `num_steps`, `num_accepted_steps`, `num_rejected_steps`: solver statistics.
+    """
+
+    ts: jax.Array
+    q: jax.Array
+    qd: jax.Array
+    qdd: jax.Array
+    speed: jax.Array
+    result: dfx.RESULTS
+    num_steps: jax.Array
+    num_accepted_steps: jax.Array
+    num_rejected_steps: jax.Array
+
+    @property
+    def successful(self):
+        """True where the solve succeeded (array under vmap)."""
+        return self.result == dfx.RESULTS.successful
+
+
+def sample_times(duration: float, sample_rate: float):
+    """Sample times 0, 1/fs, ..., up to `duration` [s] (static length)."""
+    n = int(math.floor(duration * sample_rate + 1e-9)) + 1
+    return jnp.arange(n) / sample_rate
+
+
+def default_controller(rtol: float = 1e-6, atol: float = 1e-9) -> dfx.PIDController:
+    """Default step-size controller: PID at rtol 1e-6, atol 1e-9 (states are mm and mrad)."""
+    return dfx.PIDController(rtol=rtol, atol=atol)
+
+
+def simulate(
+    params: BogieParams,
+    track: TrackIrregularity,
+    *,
+    speed,
+    duration: float,
+    sample_rate: float = 200.0,
+    y0=None,
+    options: ModelOptions = ModelOptions(),
+    solver: dfx.AbstractSolver = dfx.Tsit5(),
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    adjoint: dfx.AbstractAdjoint = dfx.RecursiveCheckpointAdjoint(),
+    max_steps: int = 100_000,
+    dt0: float | None = 1e-3,
+    throw: bool = True,
+) -> Trajectory:
+    """Simulate the bogie running at constant `speed` over `track`.
+
+    **Arguments:**
+    - `params`: `BogieParams` (SI units).
+    - `track`: `TrackIrregularity` (e.g. `synthesise_track(...)` or `perfect_track()`).
+    - `speed`: forward speed [m/s], in (0, 150]; may be traced (vmap over speeds).
+    - `duration`: simulated time [s] (static), `sample_rate`: output rate [Hz] (static).
+    - `y0`: initial state (q, q_dot) (20,), default static equilibrium (zeros).
+    - `options`: `ModelOptions` (nonlinear model options).
+    - `solver`, `stepsize_controller`, `adjoint`, `max_steps`, `dt0`, `throw`: passed to
+      `diffrax.diffeqsolve`. Use `adjoint=diffrax.ForwardMode()` for `jax.jacfwd`,
+      `throw=False` inside `vmap` (failures are then in `Trajectory.result`).
+
+    **Returns:** a `Trajectory`.
+    """
+    check_range("speed", speed, 0.0, MAX_SPEED, "m/s", open_lo=True)
+    check_range("duration", duration, 0.0, 1e5, "s", open_lo=True)
+    check_range("sample_rate", sample_rate, 0.0, 1e6, "Hz", open_lo=True)
+    check_positive_int("max_steps", max_steps)
+    warn_if_float32()
+    if stepsize_controller is None:
+        stepsize_controller = default_controller()
+    ts = sample_times(duration, sample_rate)
+    model = build_model(params, speed=speed, track=track, options=options)
+    if y0 is None:
+        y0 = jnp.zeros(2 * N_DOF)
+    solution = dfx.diffeqsolve(
+        dfx.ODETerm(vector_field),
+        solver,
+        t0=0.0,
+        t1=ts[-1],
+        dt0=dt0,
+        y0=jnp.asarray(y0, dtype=float),
+        args=model,
+        saveat=dfx.SaveAt(ts=ts),
+        stepsize_controller=stepsize_controller,
+        adjoint=adjoint,
+        max_steps=max_steps,
+        throw=throw,
+    )
+    q, qd = solution.ys[:, :N_DOF], solution.ys[:, N_DOF:]
+    qdd = jax.vmap(lambda t, a, b: accelerations(model, t, a, b))(ts, q, qd)
+    return Trajectory(
+        ts=ts,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        speed=model.speed,
+        result=solution.result,
+        num_steps=solution.stats["num_steps"],
+        num_accepted_steps=solution.stats["num_accepted_steps"],
+        num_rejected_steps=solution.stats["num_rejected_steps"],
+    )

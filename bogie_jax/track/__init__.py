@@ -1,0 +1,20 @@
+"""Track irregularities: spectra, random synthesis, and the sampled C2 track model.
+
+Channels, always in this order: 0 = lateral alignment `d_y` [m], 1 = vertical level `d_z` [m],
+2 = cross-level angle `gamma_d` [rad] (positive = left rail higher).
+"""
+
+from ._irregularity import (
+    TrackIrregularity as TrackIrregularity,
+    TrackSampleError as TrackSampleError,
+    perfect_track as perfect_track,
+)
+from ._psd import (
+    AbstractTrackPSD as AbstractTrackPSD,
+    ERRIB176Spectrum as ERRIB176Spectrum,
+    FRASpectrum as FRASpectrum,
+)
+from ._synthesis import (
+    band_variance as band_variance,
+    synthesise_track as synthesise_track,
+)
