@@ -35,8 +35,8 @@ orientation of the spinning wheelset by the non-spinning R_i, which is exact onl
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -66,7 +66,7 @@ def rot_z(a: float) -> np.ndarray:
 
 
 def cross(a, b) -> np.ndarray:
-    """Cross product of 3-vectors (broadcasting over leading axes); np.cross is slow for 3-vectors."""
+    """Cross product of 3-vectors, broadcasting over leading axes (np.cross is slow here)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     if a.ndim == 1 and b.ndim == 1:
@@ -138,7 +138,7 @@ class TwinConstants:
     f23: float
 
     @classmethod
-    def from_params(cls, params, derived=None) -> "TwinConstants":
+    def from_params(cls, params, derived=None) -> TwinConstants:
         """Read `params` (a `bogie_jax.params.BogieParams`) as floats. `derived` defaults to
         `bogie_jax.model.model_constants(params)`."""
         if derived is None:
@@ -351,7 +351,8 @@ class BogieTwin:
         qdd = np.asarray(qdd, dtype=float)
         col = lambda j: qdd[..., j, None]  # noqa: E731
         # frame: omega = roll_dot b_roll + pitch_dot b_pitch + yaw_dot e_z,
-        # b_pitch = Rz e_y turns with yaw_dot e_z, b_roll = Rz Ry e_x with yaw_dot e_z + pitch_dot b_pitch
+        # b_pitch = Rz e_y turns with yaw_dot e_z,
+        # b_roll = Rz Ry e_x turns with yaw_dot e_z + pitch_dot b_pitch
         roll_d, pitch_d, yaw_d = qd[3], qd[4], qd[5]
         b_pitch_dot = yaw_d * cross(E_Z, pose.b_pitch)
         b_roll_dot = cross(yaw_d * E_Z + pitch_d * pose.b_pitch, pose.b_roll)
@@ -427,12 +428,16 @@ class BogieTwin:
         w, wd, wdd = self._track(t)
         pose = self.pose(q, w)
         partials = self.partial_velocities(pose, wd)
-        return self._mass_matrix(pose, partials, self._inertia_world(pose), np.zeros(N_DOF), wd, wdd)
+        return self._mass_matrix(
+            pose, partials, self._inertia_world(pose), np.zeros(N_DOF), wd, wdd
+        )
 
     def _velocity_terms(self, pose, partials, inertias, vel, qd, wd, wdd):
         acc0 = self.accelerations(pose, qd, np.zeros(N_DOF), wd, wdd)
         h = np.zeros(N_DOF)
-        for (pv, pw), (a0, al0), (v, om), m, j in zip(partials, acc0, vel, self._masses(), inertias):
+        for (pv, pw), (a0, al0), (v, om), m, j in zip(
+            partials, acc0, vel, self._masses(), inertias
+        ):
             dh = j @ al0 + cross(om, j @ om)
             h += pv @ (m * a0) + pw @ dh
         return h
@@ -535,8 +540,16 @@ class BogieTwin:
                 if details is not None:
                     details.append(
                         dict(
-                            wheelset=i, side=side, xi_x=xi_x, xi_y=xi_y, xi_sp=xi_sp,
-                            normal_load=n_load, f_x=f_x, f_y=f_y, rho=rho, normal=normal,
+                            wheelset=i,
+                            side=side,
+                            xi_x=xi_x,
+                            xi_y=xi_y,
+                            xi_sp=xi_sp,
+                            normal_load=n_load,
+                            f_x=f_x,
+                            f_y=f_y,
+                            rho=rho,
+                            normal=normal,
                         )
                     )
 
