@@ -2,8 +2,9 @@
 
 `batch_runner(fn)` returns a compiled function that evaluates `fn` over the leading axis of a
 pytree batch: `vmap` over chunks of `chunk_size` members, `lax.map` over the chunks (bounded
-memory), and the chunks spread over the devices with `jax.shard_map` (on a CPU, expose several
-host devices with `XLA_FLAGS=--xla_force_host_platform_device_count=N` before importing JAX).
+memory), and the members of each chunk spread over the devices by `jax.sharding` (on a CPU,
+expose several host devices with `XLA_FLAGS=--xla_force_host_platform_device_count=N` before
+importing JAX).
 A member whose output is non-finite, or flagged by `failure_fn`, is reported in
 `BatchResult.failed`; nothing raises because of one member (use `throw=False` in solves).
 """
@@ -80,10 +81,12 @@ def batch_runner(
     def local(chunked):
         return jax.lax.map(jax.vmap(member), chunked)
 
-    @jax.jit
-    def sharded(chunked):
-        spec = PartitionSpec(None, "batch")
-        return jax.shard_map(local, mesh=mesh, in_specs=spec, out_specs=spec)(chunked)
+    # Members are spread over the devices by sharding the member axis of the jitted batch
+    # (GSPMD), not by `shard_map`: inside `shard_map` the Jacobian products of optimistix
+    # Gauss-Newton/LM/Dogleg fail (primal/tangent "varying manual axes" mismatch with
+    # `check_vma=True`, a lineax structure mismatch with `check_vma=False`; jax 0.10.2).
+    sharding = jax.sharding.NamedSharding(mesh, PartitionSpec(None, "batch"))
+    sharded = jax.jit(local, in_shardings=sharding, out_shardings=sharding)
 
     def run(batch) -> BatchResult:
         n = _batch_size(batch)

@@ -65,7 +65,7 @@ def _simulate(args) -> int:
     from .io import save_trajectory
     from .params import PARAMETER_SETS
     from .plot import plot_simulation
-    from .simulate import simulate
+    from .simulate import check_simulation_inputs, simulate
 
     if not args.out.lower().endswith((".npz", ".csv")):
         raise UsageError(f"`--out` must end in .npz or .csv, got {args.out!r}")
@@ -74,6 +74,7 @@ def _simulate(args) -> int:
     params = PARAMETER_SETS[args.params]()
     margin = 2 * float(params.geometry.semi_wheelbase) + 50.0
     try:
+        check_simulation_inputs(args.speed, args.duration, args.sample_rate)
         track = track_from_name(args.track, seed=args.seed, length=args.speed * args.duration + margin)
         trajectory = simulate(
             params, track, speed=args.speed, duration=args.duration, sample_rate=args.sample_rate

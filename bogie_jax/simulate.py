@@ -44,6 +44,14 @@ class Trajectory(eqx.Module):
         return self.result == dfx.RESULTS.successful
 
 
+def check_simulation_inputs(speed, duration, sample_rate, max_steps: int = 100_000) -> None:
+    """Raise ValueError naming the argument, its value and the valid range (before any work)."""
+    check_range("speed", speed, 0.0, MAX_SPEED, "m/s", open_lo=True)
+    check_range("duration", duration, 0.0, 1e5, "s", open_lo=True)
+    check_range("sample_rate", sample_rate, 0.0, 1e6, "Hz", open_lo=True)
+    check_positive_int("max_steps", max_steps)
+
+
 def sample_times(duration: float, sample_rate: float):
     """Sample times 0, 1/fs, ..., up to `duration` [s] (static length)."""
     n = int(math.floor(duration * sample_rate + 1e-9)) + 1
@@ -86,10 +94,7 @@ def simulate(
 
     **Returns:** a `Trajectory`.
     """
-    check_range("speed", speed, 0.0, MAX_SPEED, "m/s", open_lo=True)
-    check_range("duration", duration, 0.0, 1e5, "s", open_lo=True)
-    check_range("sample_rate", sample_rate, 0.0, 1e6, "Hz", open_lo=True)
-    check_positive_int("max_steps", max_steps)
+    check_simulation_inputs(speed, duration, sample_rate, max_steps)
     warn_if_float32()
     if stepsize_controller is None:
         stepsize_controller = default_controller()

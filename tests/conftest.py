@@ -1,5 +1,11 @@
 """Test configuration: float64 and strict promotion (as diffrax/optimistix do), shared fixtures."""
 
+import os
+
+
+# Four host devices, so the batch runner's sharding is exercised on a CPU (set before JAX loads).
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=4")
+
 import jax
 import jax.random as jr
 import pytest

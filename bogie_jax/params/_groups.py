@@ -9,7 +9,7 @@ import math
 
 import equinox as eqx
 
-from ._spec import physical, validate_fields
+from ._spec import _is_concrete, ParameterError, physical, validate_fields
 
 
 INF = math.inf
@@ -43,6 +43,14 @@ class Masses(_Group):
     carbody_mass: float = physical(
         unit="kg", valid=(0.0, 1e6), bounds=(5e3, 4e4), doc="car body mass carried by the bogie"
     )
+
+    def __check_init__(self):
+        ixx, izz = self.wheelset.ixx, self.wheelset.izz
+        if _is_concrete(ixx) and _is_concrete(izz) and abs(float(ixx) - float(izz)) > 1e-9 * float(ixx):
+            raise ParameterError(
+                f"`Masses.wheelset.izz` = {float(izz):g} kg m^2 must equal `Masses.wheelset.ixx` = "
+                f"{float(ixx):g} kg m^2: a wheelset is axisymmetric about its axle (docs/model.md)"
+            )
 
 
 class Geometry(_Group):

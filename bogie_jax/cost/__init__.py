@@ -1,0 +1,10 @@
+"""The least-squares objective (paper eq. 12) over selected parameters in unconstrained
+coordinates: the single definition used by gradients, identification and sensitivity."""
+
+from ._make import make_objective as make_objective
+from ._objective import Objective as Objective, ResidualModel as ResidualModel
+from ._selection import (
+    get_parameter as get_parameter,
+    ParameterSelection as ParameterSelection,
+    select_parameters as select_parameters,
+)

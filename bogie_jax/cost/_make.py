@@ -1,0 +1,123 @@
+"""`make_objective`: build and check an `Objective` from a measurement and a parameter selection."""
+
+from collections.abc import Mapping
+
+import diffrax as dfx
+import numpy as np
+
+from ..measure import Measurement, MeasurementError
+from ..measure._layout import check_sensor_names
+from ..measure._measurement import check_channels_in_layout
+from ..params import BogieParams, ModelOptions
+from ..simulate import default_controller, sample_times
+from ..track import TrackIrregularity
+from ._objective import Objective, ResidualModel
+from ._selection import select_parameters
+
+
+def make_objective(
+    measurement: Measurement,
+    params: BogieParams,
+    track: TrackIrregularity,
+    names,
+    *,
+    sensors=None,
+    weights=None,
+    bounds=None,
+    options: ModelOptions = ModelOptions(),
+    solver: dfx.AbstractSolver = dfx.Tsit5(),
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    adjoint: dfx.AbstractAdjoint = dfx.RecursiveCheckpointAdjoint(),
+    max_steps: int = 16_384,
+    dt0: float | None = 1e-3,
+    throw: bool = False,
+    y0=None,
+) -> Objective:
+    """The objective J(theta) of paper eq. 12 for `measurement`, over the parameters `names`.
+
+    **Arguments:**
+    - `measurement`: a `Measurement` sampled at t = 0, 1/f_s, ... (the run starts at rest at
+      t = 0 unless `y0` is given); its `speed` is the run's speed.
+    - `params`: base parameters: nominal values of the selected parameters (theta = 0) and
+      fixed values of the others. `track`: the track of the run.
+    - `names`, `bounds`: the selection (see `select_parameters`).
+    - `sensors`: the sensors of the channels (default: the measurement's layout); each channel
+      must have a sensor of that name and unit; extra sensors are ignored.
+    - `weights`: W per channel [1/unit^2]: `None` = 1 / noise_std^2 of each sensor, an array
+      (n_channels,), or `{channel: weight}` (others keep the default). Must be finite, > 0.
+    - `options`, `solver`, `stepsize_controller` (default PID rtol 1e-6, atol 1e-9), `adjoint`,
+      `max_steps`, `dt0`, `throw`, `y0`: the solve (see `simulate`). With `throw=False` a failed
+      solve gives infinite residuals instead of an error.
+
+    **Raises:** `ValueError` (`MeasurementError` for the data) naming the problem.
+    """
+    sensors = _matching_sensors(measurement, sensors)
+    duration, rate = _check_sampling(measurement)
+    sqrt_w = np.sqrt(_weights(weights, sensors, measurement.channels))
+    data = np.asarray(measurement.data, dtype=float)
+    mask = np.isfinite(data)
+    if not mask.any():
+        raise MeasurementError("every sample of the measurement is missing (NaN)")
+    model = ResidualModel(
+        params=params,
+        track=track,
+        speed=np.asarray(measurement.speed, dtype=float),
+        sensors=sensors,
+        data=np.where(mask, data, 0.0),
+        mask=mask,
+        sqrt_weights=sqrt_w,
+        duration=duration,
+        sample_rate=rate,
+        options=options,
+        solver=solver,
+        stepsize_controller=default_controller() if stepsize_controller is None else stepsize_controller,
+        adjoint=adjoint,
+        max_steps=max_steps,
+        dt0=dt0,
+        throw=throw,
+        y0=None if y0 is None else np.asarray(y0, dtype=float),
+    )
+    return Objective(select_parameters(params, names, bounds=bounds), model)
+
+
+def _matching_sensors(measurement, sensors) -> tuple:
+    sensors = measurement.sensors() if sensors is None else tuple(sensors)
+    check_sensor_names(sensors)
+    check_channels_in_layout(measurement.channels, measurement.units, sensors)
+    by_name = {s.name: s for s in sensors}
+    return tuple(by_name[c] for c in measurement.channels)
+
+
+def _check_sampling(measurement) -> tuple[float, float]:
+    times = np.asarray(measurement.times, dtype=float)
+    rate = measurement.sample_rate
+    expected = np.asarray(sample_times(float(times[-1]), rate))
+    if abs(times[0]) > 1e-9 or expected.shape != times.shape or not np.allclose(
+        expected, times, rtol=0, atol=1e-6 / rate
+    ):
+        raise MeasurementError(
+            f"the objective simulates from t = 0 at the sample times k / f_s; the measurement "
+            f"starts at t = {times[0]:g} s with {times.size} samples at {rate:g} Hz: shift its "
+            "`times` to start at 0"
+        )
+    return float(times[-1]), float(rate)
+
+
+def _weights(weights, sensors, channels) -> np.ndarray:
+    default = np.array([1.0 / float(s.noise_std) ** 2 for s in sensors])
+    if weights is None:
+        w = default
+    elif isinstance(weights, Mapping):
+        unknown = [k for k in weights if k not in channels]
+        if unknown:
+            raise ValueError(f"`weights` for unknown channels: {', '.join(map(str, unknown))}")
+        w = np.array([float(weights.get(c, d)) for c, d in zip(channels, default)])
+    else:
+        w = np.asarray(weights, dtype=float)
+        if w.shape != (len(channels),):
+            raise ValueError(f"`weights` must have shape ({len(channels)},) (one per channel), got {w.shape}")
+    bad = ~(np.isfinite(w) & (w > 0))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"`weights` must be finite and > 0; channel {channels[i]!r} has {w[i]!r}")
+    return w

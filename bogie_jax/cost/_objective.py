@@ -1,0 +1,153 @@
+"""The least-squares objective of paper eq. 12, the one definition every later tool uses.
+
+    r(theta) = W^(1/2) (y_model(theta) - y_meas)    over all channels and samples,
+    J(theta) = 1/2 |r(theta)|^2,
+
+with W = diag(w_c) per channel (default w_c = 1 / noise_std_c^2, the inverse noise variance) and
+missing (NaN) samples excluded. The time integral of eq. 12 becomes a sum over the samples (a
+constant factor 1/f_s dropped). theta holds the selected parameters in unconstrained coordinates
+(`ParameterSelection`); unselected parameters keep their values in the base `params`.
+"""
+
+import dataclasses
+
+import diffrax as dfx
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from ..measure import readings_from_states
+from ..model import build_model
+from ..params import BogieParams, ModelOptions
+from ..simulate import simulate, Trajectory
+from ..track import TrackIrregularity
+from ._selection import ParameterSelection
+
+
+class ResidualModel(eqx.Module):
+    """Weighted residuals r(p) (paper eq. 12) as a function of a full parameter tree p.
+
+    Holds the measured data (`data` (n_times, n_channels) with missing samples set to 0 and
+    `mask` True where present), `sqrt_weights` (n_channels,) = W^(1/2) [1/channel unit], the run
+    (`track`, `speed` [m/s], `duration` [s], `sample_rate` [Hz], `y0`), the `sensors` and the
+    solver settings passed to `simulate`. Build it through `make_objective`.
+    """
+
+    params: BogieParams
+    track: TrackIrregularity
+    speed: Float[Array, ""]
+    sensors: tuple
+    data: Float[Array, "n c"]
+    mask: Bool[Array, "n c"]
+    sqrt_weights: Float[Array, " c"]
+    duration: float = eqx.field(static=True)
+    sample_rate: float = eqx.field(static=True)
+    options: ModelOptions = ModelOptions()
+    solver: dfx.AbstractSolver = dfx.Tsit5()
+    stepsize_controller: dfx.AbstractStepSizeController = dfx.PIDController(rtol=1e-6, atol=1e-9)
+    adjoint: dfx.AbstractAdjoint = dfx.RecursiveCheckpointAdjoint()
+    max_steps: int = eqx.field(default=16_384, static=True)
+    dt0: float | None = eqx.field(default=1e-3, static=True)
+    throw: bool = eqx.field(default=False, static=True)
+    y0: Float[Array, " 20"] | None = None
+
+    @property
+    def n_residuals(self) -> int:
+        return self.data.size
+
+    def simulate(self, params: BogieParams) -> Trajectory:
+        """The simulated run at parameters `params`."""
+        return simulate(
+            params, self.track, speed=self.speed, duration=self.duration,
+            sample_rate=self.sample_rate, y0=self.y0, options=self.options, solver=self.solver,
+            stepsize_controller=self.stepsize_controller, adjoint=self.adjoint,
+            max_steps=self.max_steps, dt0=self.dt0, throw=self.throw,
+        )
+
+    def _predict(self, params):
+        run = self.simulate(params)
+        model = build_model(params, speed=self.speed, track=self.track, options=self.options)
+        return readings_from_states(self.sensors, model, run.ts, run.q, run.qd), run.successful
+
+    def predict(self, params: BogieParams) -> Float[Array, "n c"]:
+        """Model channels y_model (n_times, n_channels) at `params` (sensor bias included)."""
+        return self._predict(params)[0]
+
+    def __call__(self, params: BogieParams) -> Float[Array, " m"]:
+        """Residuals (n_times * n_channels,), sample-major; exactly 0 at missing samples and
+        +inf everywhere if the solve failed (with `throw=False`)."""
+        y, ok = self._predict(params)
+        r = jnp.where(self.mask, (y - self.data) * self.sqrt_weights, 0.0)
+        return jnp.where(ok, r, jnp.inf).reshape(-1)
+
+
+class Objective(eqx.Module):
+    """J(theta) = 1/2 |r(theta)|^2 over the selected parameters theta (paper eq. 12).
+
+    `residuals(theta, args)` has the optimistix signature (`args` is ignored), so
+    `optx.least_squares(objective.residuals, solver, theta0)` works. Pure JAX: use it under
+    `jax.jit`/`eqx.filter_jit`, `jax.vmap` (e.g. over theta) and every AD transform the solver's
+    `adjoint` supports. Build it with `make_objective`.
+
+    - `selection`: the `ParameterSelection` (names, units, bounds, transforms);
+    - `residual_model`: the `ResidualModel` (data, weights, run, sensors, solver settings).
+    """
+
+    selection: ParameterSelection
+    residual_model: ResidualModel
+
+    @property
+    def params(self) -> BogieParams:
+        """The base parameters (unselected parameters keep these values)."""
+        return self.residual_model.params
+
+    @property
+    def n_params(self) -> int:
+        return self.selection.n_params
+
+    @property
+    def n_residuals(self) -> int:
+        return self.residual_model.n_residuals
+
+    @property
+    def n_observations(self) -> int:
+        """Number of measured (not missing) samples: the residuals that can be non-zero."""
+        return int(jnp.sum(self.residual_model.mask))
+
+    def physical_params(self, theta) -> BogieParams:
+        """The full parameter tree at `theta`."""
+        return self.selection.apply(self.params, theta)
+
+    def residuals(self, theta, args=None) -> Float[Array, " m"]:
+        """r(theta) (n_times * n_channels,): W^(1/2) (y_model - y_meas), sample-major."""
+        del args
+        return self.residual_model(self.physical_params(theta))
+
+    def cost(self, theta, args=None) -> Float[Array, ""]:
+        """J(theta) = 1/2 |r(theta)|^2 (dimensionless: residuals are in noise standard deviations
+        with the default weights)."""
+        r = self.residuals(theta, args)
+        return 0.5 * jnp.sum(r**2)
+
+    def predict(self, theta) -> Float[Array, "n c"]:
+        """Model channels (n_times, n_channels) at `theta`."""
+        return self.residual_model.predict(self.physical_params(theta))
+
+    def simulate(self, theta) -> Trajectory:
+        """The simulated run at `theta`."""
+        return self.residual_model.simulate(self.physical_params(theta))
+
+    def replace(self, **solver_settings) -> "Objective":
+        """A copy with other solver settings (`solver`, `stepsize_controller`, `adjoint`,
+        `max_steps`, `dt0`, `throw`), e.g. `objective.replace(adjoint=diffrax.ForwardMode())`."""
+        allowed = {"solver", "stepsize_controller", "adjoint", "max_steps", "dt0", "throw"}
+        unknown = set(solver_settings) - allowed
+        if unknown:
+            raise ValueError(f"cannot replace {sorted(unknown)}; valid: {sorted(allowed)}")
+        model = dataclasses.replace(self.residual_model, **solver_settings)
+        return Objective(self.selection, model)
+
+    def with_adjoint(self, adjoint: dfx.AbstractAdjoint) -> "Objective":
+        """A copy that differentiates the solve with `adjoint`."""
+        return self.replace(adjoint=adjoint)
+

@@ -1,0 +1,32 @@
+"""Parameter identification: local fits, vmapped multistart, simulated annealing and the hybrid."""
+
+from ._annealing import (
+    AnnealingResult as AnnealingResult,
+    SimulatedAnnealing as SimulatedAnnealing,
+    fit_hybrid as fit_hybrid,
+    simulated_annealing as simulated_annealing,
+)
+from ._local import (
+    LOCAL_METHODS as LOCAL_METHODS,
+    AbstractLocalMethod as AbstractLocalMethod,
+    FitResult as FitResult,
+    LeastSquaresMethod as LeastSquaresMethod,
+    MinimiserMethod as MinimiserMethod,
+    PatternSearch as PatternSearch,
+    fit as fit,
+    local_methods as local_methods,
+)
+from ._multistart import (
+    DESIGNS as DESIGNS,
+    AbstractDesign as AbstractDesign,
+    Cluster as Cluster,
+    LatinHypercube as LatinHypercube,
+    MultistartResult as MultistartResult,
+    Sobol as Sobol,
+    fit_multistart as fit_multistart,
+)
+from ._problem import (
+    BoxTransform as BoxTransform,
+    LeastSquaresProblem as LeastSquaresProblem,
+    as_problem as as_problem,
+)

@@ -1,0 +1,321 @@
+"""Local fits: optimistix least squares / minimisers and a compass (pattern) search.
+
+Methods are strategy objects (`AbstractLocalMethod`); strings are accepted only through the
+`LOCAL_METHODS` name table. `fit` returns a `FitResult` with Gauss-Newton statistics:
+covariance `s^2 (J^T J)^-1` with `s^2 = 2 J / (m - n)`, mapped to physical units by the
+derivative of the transform (delta method).
+"""
+
+import abc
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+
+from ._problem import SUCCESS, as_problem, param_names, start_theta, status_name
+
+
+class LocalOutput(eqx.Module):
+    """Raw outcome of one local solve (vmappable: no `Solution` objects)."""
+
+    theta: jax.Array
+    result: jax.Array  # int32 code of optx.RESULTS
+    num_steps: jax.Array
+    num_fn_evals: jax.Array
+    num_jac_evals: jax.Array
+
+
+class AbstractLocalMethod(eqx.Module):
+    """A local method: `solve(problem, theta0, max_steps) -> LocalOutput`, jit/vmap-safe."""
+
+    @abc.abstractmethod
+    def solve(self, problem, theta0, max_steps: int) -> LocalOutput:
+        raise NotImplementedError
+
+
+def _code(result) -> jax.Array:
+    return jnp.asarray(result._value, dtype=jnp.int32)
+
+
+class LeastSquaresMethod(AbstractLocalMethod):
+    """An optimistix least-squares solver (LM, Gauss-Newton, Dogleg) on the residuals.
+
+    Each step linearises the residuals once (`jax.linearize`): one residual evaluation and one
+    forward-mode Jacobian per step.
+    """
+
+    solver: optx.AbstractLeastSquaresSolver
+
+    def solve(self, problem, theta0, max_steps):
+        sol = optx.least_squares(
+            problem.residuals, self.solver, theta0, problem.args, max_steps=max_steps, throw=False
+        )
+        steps = jnp.asarray(sol.stats["num_steps"])
+        return LocalOutput(sol.value, _code(sol.result), steps, steps, steps)
+
+
+class MinimiserMethod(AbstractLocalMethod):
+    """An optimistix minimiser (BFGS, Nelder-Mead) on the cost scaled by its starting value.
+
+    The scaling keeps the first quasi-Newton step sane (see docs: BFGS on the unscaled cost).
+    `restarts` re-runs the solver from its own end (the standard remedy for a collapsed
+    Nelder-Mead simplex); `max_steps` applies to each run. Evaluation counts: BFGS one
+    value-and-gradient per step; Nelder-Mead `n + 1` per (re)start and at most 2 per step.
+    """
+
+    solver: optx.AbstractMinimiser
+    restarts: int = eqx.field(static=True, default=0)
+
+    def _run(self, problem, theta0, max_steps):
+        scale = jnp.maximum(
+            jax.lax.stop_gradient(problem.cost(theta0)), jnp.finfo(theta0.dtype).tiny
+        )
+        fn = lambda theta, args: problem.cost(theta) / scale
+        sol = optx.minimise(fn, self.solver, theta0, None, max_steps=max_steps, throw=False)
+        steps = jnp.asarray(sol.stats["num_steps"])
+        if isinstance(self.solver, optx.NelderMead):
+            fevs, jevs = theta0.size + 1 + 2 * steps, jnp.zeros_like(steps)
+        else:
+            fevs, jevs = steps + 1, steps
+        return LocalOutput(sol.value, _code(sol.result), steps, fevs, jevs)
+
+    def solve(self, problem, theta0, max_steps):
+        out = self._run(problem, theta0, max_steps)
+
+        def restart(_, prev):
+            new = self._run(problem, prev.theta, max_steps)
+            return LocalOutput(
+                new.theta,
+                new.result,
+                prev.num_steps + new.num_steps,
+                prev.num_fn_evals + new.num_fn_evals,
+                prev.num_jac_evals + new.num_jac_evals,
+            )
+
+        return jax.lax.fori_loop(0, self.restarts, restart, out)
+
+
+class PatternSearch(AbstractLocalMethod):
+    """Compass search: poll `theta +- step * e_i`, move to the best improving point, else shrink.
+
+    Runs in `lax.while_loop` until the step falls below `step_tol` (success) or `max_steps`
+    polls. Each poll costs `2 n` cost evaluations (evaluated together with `vmap`).
+    """
+
+    initial_step: float = 0.5
+    step_tol: float = 1e-10
+    contraction: float = 0.5
+    expansion: float = 1.0
+
+    def solve(self, problem, theta0, max_steps):
+        n = theta0.size
+        directions = jnp.concatenate([jnp.eye(n), -jnp.eye(n)]).astype(theta0.dtype)
+        safe_cost = lambda th: jnp.nan_to_num(problem.cost(th), nan=jnp.inf)
+
+        def cond(carry):
+            _, f, step, k = carry
+            return (step > self.step_tol) & (k < max_steps) & jnp.isfinite(f)
+
+        def body(carry):
+            theta, f, step, k = carry
+            trial = theta + step * directions
+            f_trial = jax.vmap(safe_cost)(trial)
+            i = jnp.argmin(f_trial)
+            better = f_trial[i] < f
+            theta = jnp.where(better, trial[i], theta)
+            f = jnp.where(better, f_trial[i], f)
+            step = step * jnp.where(better, self.expansion, self.contraction)
+            return theta, f, step, k + 1
+
+        init = (
+            theta0,
+            safe_cost(theta0),
+            jnp.asarray(self.initial_step, theta0.dtype),
+            jnp.asarray(0),
+        )
+        theta, f, step, k = jax.lax.while_loop(cond, body, init)
+        result = optx.RESULTS.where(
+            jnp.isfinite(f),
+            optx.RESULTS.where(
+                step <= self.step_tol,
+                optx.RESULTS.successful,
+                optx.RESULTS.nonlinear_max_steps_reached,
+            ),
+            optx.RESULTS.nonlinear_divergence,
+        )
+        return LocalOutput(theta, _code(result), k, 1 + 2 * n * k, jnp.zeros_like(k))
+
+
+def local_methods(rtol: float = 1e-10, atol: float = 1e-10) -> dict:
+    """The name -> method table used at the CLI/IO boundary."""
+    return {
+        "lm": LeastSquaresMethod(optx.LevenbergMarquardt(rtol, atol)),
+        "gauss-newton": LeastSquaresMethod(optx.GaussNewton(rtol, atol)),
+        "dogleg": LeastSquaresMethod(optx.Dogleg(rtol, atol)),
+        "bfgs": MinimiserMethod(optx.BFGS(rtol, atol)),
+        "nelder-mead": MinimiserMethod(optx.NelderMead(rtol, atol, adelta=0.05), restarts=2),
+        "pattern": PatternSearch(),
+    }
+
+
+LOCAL_METHODS = local_methods()
+
+
+def as_method(method) -> AbstractLocalMethod:
+    """A method object from a name, an optimistix solver or an `AbstractLocalMethod`."""
+    if isinstance(method, str):
+        try:
+            return LOCAL_METHODS[method.lower()]
+        except KeyError:
+            raise ValueError(
+                f"unknown `method` {method!r}; choose one of {sorted(LOCAL_METHODS)} or pass a "
+                "method object"
+            ) from None
+    if isinstance(method, AbstractLocalMethod):
+        return method
+    if isinstance(method, optx.AbstractMinimiser):
+        return MinimiserMethod(method)
+    if isinstance(method, optx.AbstractLeastSquaresSolver):
+        return LeastSquaresMethod(method)
+    raise TypeError(
+        f"`method` must be a name, an optimistix solver or a method object, got {method!r}"
+    )
+
+
+class FitResult(eqx.Module):
+    """Outcome of one fit, in physical units unless stated.
+
+    `covariance = D s^2 (J^T J)^-1 D^T` with `J` the residual Jacobian in `theta`, `D` the
+    Jacobian of `to_physical`, and `s^2 = 2 cost / dof`, `dof = m - n`. `ci95` uses the
+    Student-t quantile with `dof` degrees of freedom. Evaluation counts include the final
+    residual + Jacobian evaluation for the statistics.
+    """
+
+    names: tuple[str, ...] = eqx.field(static=True)
+    estimates: jax.Array
+    theta: jax.Array
+    cost: jax.Array
+    std_errors: jax.Array
+    ci95: jax.Array
+    correlation: jax.Array
+    covariance: jax.Array
+    noise_variance: jax.Array
+    dof: int = eqx.field(static=True)
+    on_bound: jax.Array
+    num_steps: jax.Array
+    num_fn_evals: jax.Array
+    num_jac_evals: jax.Array
+    status: jax.Array
+    wall_time: float = eqx.field(static=True)
+
+    @property
+    def success(self) -> bool:
+        return int(self.status) == SUCCESS
+
+    @property
+    def status_name(self) -> str:
+        return status_name(self.status)
+
+
+def t_quantile(q: float, dof: int):
+    """Student-t quantile by bisection on `betainc` (jax.scipy has no `t.ppf`)."""
+    dof = jnp.asarray(dof, float)
+    tail = 1.0 - q
+
+    def upper_tail(t):
+        return 0.5 * jax.scipy.special.betainc(0.5 * dof, 0.5, dof / (dof + t**2))
+
+    def body(_, lohi):
+        lo, hi = lohi
+        mid = 0.5 * (lo + hi)
+        too_small = upper_tail(mid) > tail
+        return jnp.where(too_small, mid, lo), jnp.where(too_small, hi, mid)
+
+    lo, hi = jax.lax.fori_loop(0, 200, body, (jnp.asarray(0.0), jnp.asarray(1e4)))
+    return 0.5 * (lo + hi)
+
+
+def statistics(problem, theta, bound_tol: float):
+    """Cost, Gauss-Newton covariance and on-bound flags at `theta` (jit-safe)."""
+    residuals = lambda th: jnp.ravel(problem.residuals(th, problem.args))
+    r = residuals(theta)
+    jac = jax.jacfwd(residuals)(theta)
+    m, n = jac.shape
+    dof = m - n
+    cost = 0.5 * jnp.sum(r**2)
+    s2 = 2.0 * cost / dof if dof > 0 else jnp.asarray(jnp.nan)
+    d = jax.jacfwd(problem.transform.to_physical)(theta)
+    unscaled = d @ jnp.linalg.inv(jac.T @ jac) @ d.T  # (J_p^T J_p)^-1 by the chain rule
+    covariance = s2 * unscaled
+    estimates = problem.transform.to_physical(theta)
+    se = jnp.sqrt(jnp.diag(covariance))
+    half = t_quantile(0.975, max(dof, 1)) * se
+    unit = jnp.sqrt(jnp.diag(unscaled))
+    lower, upper = problem.transform.lower, problem.transform.upper
+    u = (estimates - lower) / (upper - lower)
+    return dict(
+        estimates=estimates,
+        cost=cost,
+        std_errors=se,
+        ci95=jnp.stack([estimates - half, estimates + half], axis=-1),
+        correlation=unscaled / jnp.outer(unit, unit),
+        covariance=covariance,
+        noise_variance=s2,
+        dof=dof,
+        on_bound=(u < bound_tol) | (u > 1.0 - bound_tol),
+    )
+
+
+@eqx.filter_jit
+def _fit_jit(problem, theta0, method, max_steps, bound_tol):
+    out = method.solve(problem, theta0, max_steps)
+    return out, statistics(problem, out.theta, bound_tol)
+
+
+def fit(
+    problem,
+    start=None,
+    *,
+    method="lm",
+    max_steps: int = 256,
+    throw: bool = True,
+    bound_tol: float = 1e-6,
+) -> FitResult:
+    """Fit the parameters of `problem` by a local method.
+
+    **Arguments:**
+    - `problem`: a `LeastSquaresProblem` or an `Objective` (see `as_problem`).
+    - `start`: start in physical units, strictly inside the bounds (default: nominal).
+    - `method`: a name from `LOCAL_METHODS` (default `"lm"`), an optimistix least-squares
+      solver or minimiser, or an `AbstractLocalMethod`.
+    - `max_steps`: solver step limit.
+    - `throw`: raise `RuntimeError` if the solver did not succeed (else read `status`).
+    - `bound_tol`: an estimate within this fraction of the box width of a bound is flagged.
+
+    **Returns:** a `FitResult`.
+
+    **Raises:** `ValueError` for an empty selection, a bad start or an unknown method name.
+    """
+    problem = as_problem(problem)
+    method = as_method(method)
+    theta0 = start_theta(problem.transform, start)
+    tic = time.perf_counter()
+    out, stats = jax.block_until_ready(_fit_jit(problem, theta0, method, max_steps, bound_tol))
+    wall = time.perf_counter() - tic
+    result = FitResult(
+        names=param_names(problem.transform, theta0.size),
+        theta=out.theta,
+        num_steps=out.num_steps,
+        num_fn_evals=out.num_fn_evals + 1,
+        num_jac_evals=out.num_jac_evals + 1,
+        status=out.result,
+        wall_time=wall,
+        **stats,
+    )
+    if throw and not result.success:
+        raise RuntimeError(
+            f"fit did not succeed: {result.status_name} after {int(out.num_steps)} steps"
+        )
+    return result

@@ -1,0 +1,240 @@
+"""Multistart: space-filling starts inside the bounds, all local fits as one vmapped batch.
+
+The batch runs through `bogie_jax.batch.batch_runner` (vmap in chunks, sharded over devices);
+a failed start (non-finite output or unsuccessful solver status) is reported, never raised.
+Distinct minima are clustered on the host in box-normalised coordinates.
+"""
+
+import abc
+import time
+import warnings
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.random as jr
+import numpy as np
+
+from ..batch import batch_runner
+from ._local import FitResult, as_method, statistics
+from ._problem import SUCCESS, as_problem, bounds, param_names, start_theta, status_name
+
+
+class AbstractDesign(eqx.Module):
+    """A space-filling design: `sample(key, n, dim) -> (n, dim)` points in the open unit cube."""
+
+    @abc.abstractmethod
+    def sample(self, key, n: int, dim: int) -> np.ndarray:
+        raise NotImplementedError
+
+
+class LatinHypercube(AbstractDesign):
+    """Latin hypercube with a random point in each stratum (pure JAX)."""
+
+    margin: float = 1e-6
+
+    def sample(self, key, n, dim):
+        perm_key, jitter_key = jr.split(key)
+        perms = jax.vmap(lambda k: jr.permutation(k, n))(jr.split(perm_key, dim)).T
+        u = (perms + jr.uniform(jitter_key, (n, dim))) / n
+        return np.asarray(self.margin + (1.0 - 2.0 * self.margin) * u)
+
+
+class Sobol(AbstractDesign):
+    """Scrambled Sobol sequence (scipy.stats.qmc, seeded from `key`)."""
+
+    margin: float = 1e-6
+
+    def sample(self, key, n, dim):
+        from scipy.stats import qmc
+
+        seed = int(jr.randint(key, (), 0, np.iinfo(np.int32).max))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # balance warning for n != 2^k
+            u = qmc.Sobol(dim, scramble=True, seed=seed).random(n)
+        return self.margin + (1.0 - 2.0 * self.margin) * u
+
+
+DESIGNS = {"lhs": LatinHypercube(), "sobol": Sobol()}
+
+
+def as_design(design) -> AbstractDesign:
+    if isinstance(design, AbstractDesign):
+        return design
+    if isinstance(design, str) and design.lower() in DESIGNS:
+        return DESIGNS[design.lower()]
+    raise ValueError(
+        f"unknown `design` {design!r}; choose one of {sorted(DESIGNS)} or an AbstractDesign"
+    )
+
+
+class Cluster(eqx.Module):
+    """One distinct minimum: the best member's estimates and cost, and who reached it."""
+
+    estimates: np.ndarray
+    cost: float
+    count: int
+    members: tuple[int, ...]
+
+
+class MultistartResult(eqx.Module):
+    """Every start's record, the clustered minima (best first) and the answer `best`."""
+
+    names: tuple[str, ...] = eqx.field(static=True)
+    starts: np.ndarray  # (N, n) physical
+    ends: np.ndarray  # (N, n) physical
+    costs: np.ndarray  # (N,)
+    status: np.ndarray  # (N,) optx.RESULTS codes
+    failed: np.ndarray  # (N,) bool
+    num_steps: np.ndarray
+    num_fn_evals: np.ndarray
+    num_jac_evals: np.ndarray
+    clusters: tuple[Cluster, ...]
+    best: FitResult | None
+    wall_time: float
+
+    def records(self) -> list[dict]:
+        """Per-start records (JSON-ready)."""
+        return [
+            dict(
+                start=self.starts[i].tolist(),
+                end=self.ends[i].tolist(),
+                cost=float(self.costs[i]),
+                status=status_name(self.status[i]),
+                failed=bool(self.failed[i]),
+                num_steps=int(self.num_steps[i]),
+                num_fn_evals=int(self.num_fn_evals[i]),
+            )
+            for i in range(len(self.costs))
+        ]
+
+
+def cluster_minima(ends_unit, costs, ok, tol: float) -> tuple[list[list[int]], list[int]]:
+    """Greedy clustering of successful ends, lowest cost first (max-norm distance `tol`)."""
+    groups, heads = [], []
+    for i in sorted(np.flatnonzero(ok), key=lambda j: costs[j]):
+        for group, head in zip(groups, heads):
+            if np.max(np.abs(ends_unit[i] - ends_unit[head])) <= tol:
+                group.append(int(i))
+                break
+        else:
+            groups.append([int(i)])
+            heads.append(int(i))
+    return groups, heads
+
+
+def run_batch(member, batch, *, chunk_size, devices):
+    """Run `member` over `batch` through the batch runner; flag unsuccessful statuses."""
+    runner = batch_runner(
+        member,
+        chunk_size=chunk_size,
+        devices=devices,
+        failure_fn=lambda out: out[0].result != SUCCESS,
+    )
+    return jax.block_until_ready(runner(batch))
+
+
+def local_member(problem, method, max_steps):
+    def member(theta0):
+        out = method.solve(problem, theta0, max_steps)
+        return out, problem.cost(out.theta)
+
+    return member
+
+
+def collect(problem, starts_theta, batch, wall, *, cluster_tol, bound_tol, throw, extra_fevs=0):
+    """Turn a batch of `(LocalOutput, cost)` into a `MultistartResult`."""
+    out, costs = batch.outputs
+    tr = problem.transform
+    lower, upper = bounds(tr)
+    ends = np.asarray(jax.vmap(tr.to_physical)(out.theta))
+    costs, failed = np.asarray(costs), np.asarray(batch.failed)
+    groups, heads = cluster_minima((ends - lower) / (upper - lower), costs, ~failed, cluster_tol)
+    clusters = tuple(
+        Cluster(ends[h], float(costs[h]), len(g), tuple(g)) for g, h in zip(groups, heads)
+    )
+    n_fev = np.asarray(out.num_fn_evals) + extra_fevs
+    best = None
+    if heads:
+        h = heads[0]
+        stats = eqx.filter_jit(statistics)(problem, out.theta[h], bound_tol)
+        best = FitResult(
+            names=param_names(tr, lower.size),
+            theta=out.theta[h],
+            num_steps=out.num_steps[h],
+            num_fn_evals=jnp.asarray(n_fev.sum() + 1),
+            num_jac_evals=jnp.asarray(np.asarray(out.num_jac_evals).sum() + 1),
+            status=out.result[h],
+            wall_time=wall,
+            **stats,
+        )
+    elif throw:
+        raise RuntimeError(f"all {len(costs)} starts failed")
+    return MultistartResult(
+        names=param_names(tr, lower.size),
+        starts=np.asarray(jax.vmap(tr.to_physical)(starts_theta)),
+        ends=ends,
+        costs=costs,
+        status=np.asarray(out.result),
+        failed=failed,
+        num_steps=np.asarray(out.num_steps),
+        num_fn_evals=n_fev,
+        num_jac_evals=np.asarray(out.num_jac_evals),
+        clusters=clusters,
+        best=best,
+        wall_time=wall,
+    )
+
+
+def design_starts(problem, key, n_starts, design):
+    """`n_starts` thetas from `design`, mapped into the bounds."""
+    lower, upper = bounds(problem.transform)
+    if n_starts < 1:
+        raise ValueError(f"`n_starts` must be >= 1, got {n_starts}")
+    u = as_design(design).sample(key, n_starts, lower.size)
+    return jax.vmap(problem.transform.to_theta)(jnp.asarray(lower + (upper - lower) * u))
+
+
+def fit_multistart(
+    problem,
+    *,
+    key,
+    n_starts: int = 32,
+    method="lm",
+    design="lhs",
+    starts=None,
+    max_steps: int = 256,
+    chunk_size: int | None = None,
+    devices=None,
+    cluster_tol: float = 1e-4,
+    bound_tol: float = 1e-6,
+    throw: bool = True,
+) -> MultistartResult:
+    """Local fits from `n_starts` space-filling starts, run as one vmapped, sharded batch.
+
+    **Arguments:**
+    - `problem`: a `LeastSquaresProblem` or an `Objective`.
+    - `key`: PRNG key for the design (keyword-only, no default).
+    - `n_starts`, `design` (`"lhs"`, `"sobol"` or an `AbstractDesign`), or explicit physical
+      `starts` of shape `(N, n)` (then `n_starts`/`design` are ignored).
+    - `method`, `max_steps`: as in `fit`; solves use `throw=False`.
+    - `chunk_size`, `devices`: passed to `batch_runner`.
+    - `cluster_tol`: max-norm distance, as a fraction of each box width, within one minimum.
+    - `throw`: raise if every start failed.
+
+    **Returns:** a `MultistartResult`; `best` is the fit from the lowest-cost cluster.
+    """
+    problem = as_problem(problem)
+    method = as_method(method)
+    if starts is None:
+        thetas = design_starts(problem, key, n_starts, design)
+    else:
+        thetas = jnp.stack([start_theta(problem.transform, s) for s in np.atleast_2d(starts)])
+    tic = time.perf_counter()
+    batch = run_batch(
+        local_member(problem, method, max_steps), thetas, chunk_size=chunk_size, devices=devices
+    )
+    wall = time.perf_counter() - tic
+    return collect(
+        problem, thetas, batch, wall, cluster_tol=cluster_tol, bound_tol=bound_tol, throw=throw
+    )

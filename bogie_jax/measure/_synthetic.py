@@ -1,0 +1,117 @@
+"""Sensor readings from a trajectory, and synthetic measurements from known parameters."""
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.random as jr
+import numpy as np
+
+from ..model import accelerations, BogieModel, build_model
+from ..params import BogieParams, ModelOptions
+from ..simulate import simulate, Trajectory
+from ..track import TrackIrregularity
+from ._layout import check_sensor_names, default_sensor_layout, layout_description
+from ._locations import sample_state
+from ._measurement import Measurement
+
+
+def sensor_readings(sensors, model: BogieModel, ts, q, qd, qdd):
+    """Noise-free readings (n_times, n_sensors) of `sensors` (bias included) at times `ts` [s]
+    for coordinates `q`, rates `qd` and accelerations `qdd` (n_times, 10) of the run `model`."""
+
+    def at(t, q_, qd_, qdd_):
+        state = sample_state(model, t, q_, qd_, qdd_)
+        return jnp.stack([s.read(model, state) + s.bias for s in sensors])
+
+    return jax.vmap(at)(ts, q, qd, qdd)
+
+
+def readings_from_states(sensors, model: BogieModel, ts, q, qd):
+    """`sensor_readings` with q_ddot from the equations of motion (`model.accelerations`).
+
+    Non-finite states (the unreached samples of a failed solve) are replaced by zeros first, so
+    that neither the readings nor their derivatives become NaN (double-where).
+    """
+    q = jnp.where(jnp.isfinite(q), q, 0.0)
+    qd = jnp.where(jnp.isfinite(qd), qd, 0.0)
+    qdd = jax.vmap(lambda t, a, b: accelerations(model, t, a, b))(ts, q, qd)
+    return sensor_readings(sensors, model, ts, q, qd, qdd)
+
+
+def measure(
+    trajectory: Trajectory,
+    sensors,
+    params: BogieParams,
+    track: TrackIrregularity,
+    *,
+    options: ModelOptions = ModelOptions(),
+):
+    """Noise-free channels (n_times, n_sensors) of `sensors` for a simulated `trajectory` of the
+    bogie `params` on `track` (the run's speed is `trajectory.speed`)."""
+    sensors = tuple(sensors)
+    check_sensor_names(sensors)
+    model = build_model(params, speed=trajectory.speed, track=track, options=options)
+    t = trajectory
+    return sensor_readings(sensors, model, t.ts, t.q, t.qd, t.qdd)
+
+
+@eqx.filter_jit
+def _clean_channels(params, track, speed, sensors, duration, sample_rate, kwargs):
+    run = simulate(params, track, speed=speed, duration=duration, sample_rate=sample_rate, **kwargs)
+    return run.ts, measure(run, sensors, params, track, options=kwargs["options"]), run.successful
+
+
+def synthetic_measurement(
+    params: BogieParams,
+    track: TrackIrregularity,
+    *,
+    speed: float,
+    duration: float,
+    sample_rate: float = 200.0,
+    sensors=None,
+    key=None,
+    noise_scale: float = 1.0,
+    track_name: str = "",
+    options: ModelOptions = ModelOptions(),
+    solver: dfx.AbstractSolver = dfx.Tsit5(),
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    max_steps: int = 100_000,
+    y0=None,
+) -> Measurement:
+    """Simulate `params` on `track` and read `sensors` (default `default_sensor_layout(params)`).
+
+    **Arguments:**
+    - `speed` [m/s], `duration` [s], `sample_rate` [Hz]: as in `simulate` (times 0, 1/fs, ...).
+    - `key`: PRNG key for additive Gaussian noise of standard deviation
+      `noise_scale * sensor.noise_std` per channel; `None` gives noise-free data. Sensor biases
+      are always added.
+    - `track_name`: the track reference stored in the measurement.
+    - `options`, `solver`, `stepsize_controller`, `max_steps`, `y0`: passed to `simulate`.
+
+    **Returns:** a `Measurement` whose `layout` describes `sensors`.
+
+    **Raises:** `RuntimeError` if the solve fails.
+    """
+    sensors = default_sensor_layout(params) if sensors is None else tuple(sensors)
+    layout = layout_description(sensors)
+    kwargs = dict(
+        options=options, solver=solver, stepsize_controller=stepsize_controller,
+        max_steps=max_steps, y0=y0, throw=False,
+    )
+    ts, clean, ok = _clean_channels(params, track, speed, sensors, duration, sample_rate, kwargs)
+    if not bool(ok):
+        raise RuntimeError("the simulation for the synthetic measurement failed (see `simulate`)")
+    data = np.asarray(clean)
+    if key is not None:
+        std = np.array([float(s.noise_std) for s in sensors])
+        data = data + noise_scale * std * np.asarray(jr.normal(key, data.shape, dtype=clean.dtype))
+    return Measurement(
+        times=np.asarray(ts),
+        data=data,
+        channels=tuple(s.name for s in sensors),
+        units=tuple(s.unit for s in sensors),
+        speed=float(speed),
+        track=track_name,
+        layout=layout,
+    )

@@ -1,0 +1,26 @@
+"""Sensitivity analysis: factor screening and variance-based (Sobol') indices.
+
+Generic core: every function takes a pure scalar function of a parameter vector and the box
+bounds of the parameters; model evaluations go through `bogie_jax.batch.batch_runner`.
+"""
+
+from ._sampling import (
+    MAX_DIMENSION as MAX_DIMENSION,
+    SaltelliSample as SaltelliSample,
+    saltelli_sample as saltelli_sample,
+    sobol_sequence as sobol_sequence,
+)
+from ._screening import (
+    ScreeningGrid as ScreeningGrid,
+    ScreeningSweeps as ScreeningSweeps,
+    screening_grid as screening_grid,
+    screening_sweeps as screening_sweeps,
+)
+from ._sobol import (
+    AbstractSobolEstimator as AbstractSobolEstimator,
+    Jansen as Jansen,
+    Saltelli2010 as Saltelli2010,
+    SobolIndices as SobolIndices,
+    sobol_analysis as sobol_analysis,
+    sobol_indices as sobol_indices,
+)

@@ -1,0 +1,91 @@
+"""Checks of sensitivity inputs, run on concrete values before any model evaluation."""
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def check_power_of_two(name: str, value) -> int:
+    """Return `value` as an int, or raise ValueError unless it is a power of two >= 2."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"`{name}` must be an integer power of two, got {value!r}")
+    value = int(value)
+    if value < 2 or value & (value - 1):
+        below = 1 << max(value.bit_length() - 1, 1)
+        raise ValueError(
+            f"`{name}` must be a power of two >= 2 (the balance properties of a Sobol' design "
+            f"hold only then), got {value}; try {below} or {2 * below}"
+        )
+    return value
+
+
+def check_positive_int(name: str, value, lo: int = 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < lo:
+        raise ValueError(f"`{name}` must be an integer >= {lo}, got {value!r}")
+    return int(value)
+
+
+def default_names(n: int) -> tuple[str, ...]:
+    return tuple(f"x{i}" for i in range(n))
+
+
+def check_bounds(lower, upper, names: Sequence[str] | None = None):
+    """Return `(lower, upper)` as float numpy vectors, or raise naming the first bad parameter.
+
+    **Raises:** `ValueError` unless both are finite 1-D vectors of one length (matching `names`)
+    with `lower < upper` element by element.
+    """
+    lo = np.asarray(lower, dtype=float)
+    hi = np.asarray(upper, dtype=float)
+    if lo.ndim != 1 or lo.shape != hi.shape or lo.size == 0:
+        raise ValueError(
+            f"`lower` and `upper` must be non-empty 1-D vectors of one length, got shapes "
+            f"{lo.shape} and {hi.shape}"
+        )
+    names = tuple(names) if names is not None else default_names(lo.size)
+    if len(names) != lo.size:
+        raise ValueError(f"`names` has {len(names)} entries but the bounds have {lo.size}")
+    for i, name in enumerate(names):
+        if not (np.isfinite(lo[i]) and np.isfinite(hi[i])):
+            raise ValueError(f"bounds of `{name}` must be finite, got [{lo[i]:g}, {hi[i]:g}]")
+        if not lo[i] < hi[i]:
+            raise ValueError(
+                f"bounds of `{name}` need lower < upper, got lower = {lo[i]:g} >= "
+                f"upper = {hi[i]:g}"
+            )
+    return lo, hi
+
+
+def check_point_in_bounds(name: str, point, lower, upper, names: Sequence[str]):
+    """Return `point` as a float vector of the bounds' length lying inside them, or raise."""
+    x = np.asarray(point, dtype=float)
+    if x.shape != np.shape(lower):
+        raise ValueError(f"`{name}` must have shape {np.shape(lower)}, got {x.shape}")
+    for i, pname in enumerate(names):
+        if not (np.isfinite(x[i]) and lower[i] <= x[i] <= upper[i]):
+            raise ValueError(
+                f"`{name}` of `{pname}` = {x[i]:g} is outside its bounds "
+                f"[{lower[i]:g}, {upper[i]:g}]"
+            )
+    return x
+
+
+def resolve_names(requested: Sequence[str | int], names: Sequence[str]) -> tuple[int, ...]:
+    """Map parameter names (or integer positions) to positions, or raise naming the unknown one."""
+    if isinstance(requested, str | int):
+        requested = (requested,)
+    positions = []
+    for r in requested:
+        if isinstance(r, str):
+            if r not in names:
+                raise ValueError(f"unknown parameter `{r}`; known parameters: {', '.join(names)}")
+            positions.append(names.index(r))
+        elif isinstance(r, int | np.integer) and not isinstance(r, bool) and 0 <= r < len(names):
+            positions.append(int(r))
+        else:
+            raise ValueError(
+                f"parameter {r!r} is neither a known name nor a position in [0, {len(names)})"
+            )
+    if len(set(positions)) != len(positions):
+        raise ValueError(f"parameters must be distinct, got {tuple(requested)!r}")
+    return tuple(positions)

@@ -1,0 +1,111 @@
+"""simulate(): input checks, vmap over speeds / parameters / tracks, the batch runner, no
+retracing for new parameter values."""
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.random as jr
+import numpy as np
+import pytest
+
+import bogie_jax as bj
+from bogie_jax.batch import batch_runner
+from bogie_jax.simulate import simulate
+from bogie_jax.track import ERRIB176Spectrum, synthesise_track
+
+
+DURATION, RATE = 0.4, 100.0
+
+
+@pytest.fixture(scope="module")
+def tracks():
+    keys = jr.split(jr.PRNGKey(3), 2)
+    return [synthesise_track(ERRIB176Spectrum.high(), key=k, length=80.0, fade_length=2.0) for k in keys]
+
+
+def _run(params, track, speed):
+    return simulate(
+        params, track, speed=speed, duration=DURATION, sample_rate=RATE, throw=False,
+        stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-10), max_steps=4096,
+    ).q
+
+
+@pytest.fixture(scope="module")
+def single():
+    return jax.jit(_run)
+
+
+def _with_ky(params, ky):
+    return eqx.tree_at(lambda p: p.primary.ky, params, ky)
+
+
+@pytest.mark.parametrize(
+    "kwargs, pattern",
+    [
+        ({"speed": 0.0}, r"`speed` = 0 m/s is outside the valid range \(0, 150\] m/s"),
+        ({"speed": 200.0}, r"`speed` = 200 m/s is outside"),
+        ({"duration": -1.0}, r"`duration` = -1 s is outside"),
+        ({"sample_rate": 0.0}, r"`sample_rate` = 0 Hz is outside"),
+        ({"max_steps": 0}, r"`max_steps` must be an integer"),
+    ],
+)
+def test_bad_input_is_rejected_before_solving(kwargs, pattern, tracks):
+    args = dict(speed=50.0, duration=1.0, sample_rate=100.0) | kwargs
+    with pytest.raises(ValueError, match=pattern):
+        simulate(bj.manchester_benchmark(), tracks[0], **args)
+
+
+def test_vmap_over_speeds_parameters_and_tracks_equals_loop(single, tracks):
+    params = bj.manchester_benchmark()
+    speeds = jnp.array([40.0, 55.0])
+    kys = jnp.array([3e6, 5e6])
+    stacked_tracks = jax.tree.map(lambda *x: jnp.stack(x), *tracks)
+    batched = jax.jit(jax.vmap(lambda ky, tr, v: _run(_with_ky(params, ky), tr, v)))(kys, stacked_tracks, speeds)
+    for i in range(2):
+        one = single(_with_ky(params, kys[i]), tracks[i], speeds[i])
+        # A batched adaptive solve takes its own step sequence: agreement to the solver
+        # tolerance (rtol 1e-8, accumulated over the run), not bit for bit.
+        np.testing.assert_allclose(batched[i], one, rtol=0, atol=1e-5 * np.max(np.abs(one)))
+    assert np.max(np.abs(np.asarray(batched))) > 1e-5  # the tracks really excite the bogie
+
+
+def test_batch_runner_sharded_equals_single_device_and_reports_failures(tracks):
+    assert jax.device_count() >= 4, "tests/conftest.py exposes 4 host devices"
+    params = bj.manchester_benchmark()
+
+    def member(ky):
+        return _run(_with_ky(params, ky), tracks[0], 50.0)
+
+    kys = jnp.array([3e6, 4e6, jnp.nan, 5e6, 6e6])  # the NaN member must fail alone
+    sharded = batch_runner(member, chunk_size=1)(kys)
+    one_device = batch_runner(member, devices=jax.devices()[:1])(kys)
+    assert list(np.asarray(sharded.failed)) == [False, False, True, False, False]
+    ok = ~np.asarray(sharded.failed)
+    scale = np.max(np.abs(np.asarray(one_device.outputs)[ok]))
+    np.testing.assert_allclose(  # to solver tolerance, see the vmap test
+        np.asarray(sharded.outputs)[ok], np.asarray(one_device.outputs)[ok], rtol=0, atol=1e-5 * scale
+    )
+    np.testing.assert_allclose(np.asarray(sharded.outputs)[0], member(kys[0]), rtol=0, atol=1e-5 * scale)
+
+
+def test_new_parameter_values_do_not_retrace(tracks):
+    traces = []
+
+    @jax.jit
+    def run(params):
+        traces.append(1)
+        return _run(params, tracks[0], 50.0)
+
+    params = bj.manchester_benchmark()
+    for ky in (3e6, 4e6, 5e6):
+        run(_with_ky(params, jnp.asarray(ky)))
+    assert len(traces) == 1
+
+
+def test_float32_is_explained():
+    from bogie_jax._precision import warn_if_float32
+
+    with jax.enable_x64(False):
+        with pytest.warns(UserWarning, match="jax_enable_x64"):
+            warn_if_float32()
