@@ -1,4 +1,5 @@
-"""Test configuration: float64 and strict promotion (as diffrax/optimistix do), shared fixtures."""
+"""Test configuration: float64 (as diffrax and optimistix tests do), 4 host devices, a
+compilation cache shared by the tests, and shared fixtures."""
 
 import os
 
@@ -12,6 +13,9 @@ import pytest
 
 
 jax.config.update("jax_enable_x64", True)
+# Identical programs compiled by different tests (CLI, notebooks, library calls) are compiled once.
+jax.config.update("jax_compilation_cache_dir", os.path.join(os.path.dirname(__file__), "..", ".jax_cache"))
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
 @pytest.fixture

@@ -8,3 +8,4 @@ from ._selection import (
     ParameterSelection as ParameterSelection,
     select_parameters as select_parameters,
 )
+from ._scenario import synthetic_objective as synthetic_objective

@@ -36,11 +36,13 @@ def system_matrix(params: BogieParams, speed, options: ModelOptions = ModelOptio
     return jax.jacfwd(vector_field, argnums=1)(0.0, jnp.zeros(2 * N_DOF), model)
 
 
+@eqx.filter_jit
 def eigenvalues(params: BogieParams, speed, options: ModelOptions = ModelOptions()):
     """Eigenvalues [1/s] of the linearised bogie at `speed` [m/s]."""
     return jnp.linalg.eigvals(system_matrix(params, speed, options))
 
 
+@eqx.filter_jit
 def stability_sweep(params: BogieParams, speeds, options: ModelOptions = ModelOptions()):
     """Eigenvalues at each speed of `speeds` [m/s] (vmapped)."""
     speeds = jnp.asarray(speeds, dtype=float)
@@ -52,6 +54,7 @@ def _leading_real_part(params, speed, options):
     return jnp.max(eigenvalues(params, speed, options).real)
 
 
+@eqx.filter_jit
 def critical_speed(
     params: BogieParams,
     *,

@@ -1,9 +1,17 @@
 """Sensitivity analysis: factor screening and variance-based (Sobol') indices.
 
-Generic core: every function takes a pure scalar function of a parameter vector and the box
-bounds of the parameters; model evaluations go through `bogie_jax.batch.batch_runner`.
+Generic core (`screening_*`, `sobol_*`): a pure scalar function of a parameter vector and the
+box bounds of the parameters; model evaluations go through `bogie_jax.batch.batch_runner`.
+Objective adapters (`sensitivity_*`): the same on `bogie_jax.cost.Objective`.
 """
 
+from ._objective import (
+    objective_bounds as objective_bounds,
+    objective_function as objective_function,
+    sensitivity_grid as sensitivity_grid,
+    sensitivity_sobol as sensitivity_sobol,
+    sensitivity_sweeps as sensitivity_sweeps,
+)
 from ._sampling import (
     MAX_DIMENSION as MAX_DIMENSION,
     SaltelliSample as SaltelliSample,

@@ -1,0 +1,355 @@
+"""Gradients of the least-squares objective by every method of paper sections 5.2-5.3.
+
+| method | how | AD mode |
+| --- | --- | --- |
+| `"reverse"` | reverse-mode AD through the solver, `RecursiveCheckpointAdjoint` | rev |
+| `"backsolve"` | continuous adjoint (the paper's adjoint-state method), `BacksolveAdjoint` | rev |
+| `"forward"` | forward-mode AD through the solver, `ForwardMode` + `jax.jacfwd` | fwd |
+| `"direct"` | `DirectAdjoint` (both modes; meant for Hessians, slow to compile) | rev (or fwd) |
+| `"fd-forward"`, `"fd-central"` | finite differences (paper eq. 13), step rule below | - |
+
+Reverse mode costs a few forward solves whatever the number of parameters n; forward mode pushes
+one tangent per parameter (cost grows with n, slowly while the tangents vectorise); finite
+differences cost n (forward) or 2n (central) solves.
+
+Finite-difference steps, per parameter i (Nocedal & Wright, Numerical Optimization, 8.1):
+`h_i = eps^(1/2) * max(|theta_i|, typical_scale)` (forward) and
+`h_i = eps^(1/3) * max(|theta_i|, typical_scale)` (central), where `eps` is the relative accuracy
+of J: by default the larger of machine epsilon and the `rtol` of the solve's step-size controller
+(an adaptive solve is only that accurate), and `typical_scale` = 1 (theta is a log or logit
+coordinate). Each h_i is then rounded so that theta_i + h_i - theta_i == h_i exactly.
+"""
+
+import statistics
+import time
+from typing import NamedTuple
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.random as jr
+import numpy as np
+
+from .cost import Objective
+
+
+class _Method(NamedTuple):
+    adjoint: dfx.AbstractAdjoint
+    modes: tuple[str, ...]  # supported AD modes, the default first
+
+
+AD_METHODS = {
+    "reverse": _Method(dfx.RecursiveCheckpointAdjoint(), ("rev",)),
+    "backsolve": _Method(dfx.BacksolveAdjoint(), ("rev",)),
+    "forward": _Method(dfx.ForwardMode(), ("fwd",)),
+    "direct": _Method(dfx.DirectAdjoint(), ("rev", "fwd")),
+}
+FD_METHODS = {"fd-forward": 1 / 2, "fd-central": 1 / 3}  # method -> exponent of eps in h
+METHODS = (*AD_METHODS, *FD_METHODS)
+_ADJOINT_NAMES = {
+    dfx.RecursiveCheckpointAdjoint: "reverse",
+    dfx.BacksolveAdjoint: "backsolve",
+    dfx.ForwardMode: "forward",
+    dfx.DirectAdjoint: "direct",
+}
+
+
+class GradientResult(eqx.Module):
+    """`value` = J(theta), `grad` = dJ/dtheta (n,), `jacobian` = dr/dtheta (m, n) or None,
+    `residuals` r(theta) (m,); `method` and `mode` ("fwd", "rev" or "fd") that produced them."""
+
+    value: jax.Array
+    grad: jax.Array
+    residuals: jax.Array
+    jacobian: jax.Array | None
+    method: str = eqx.field(static=True)
+    mode: str = eqx.field(static=True)
+
+
+def resolve_method(method, mode: str | None = None) -> tuple[str, dfx.AbstractAdjoint | None, str]:
+    """`(name, adjoint, mode)` for a method name or a diffrax adjoint instance.
+
+    **Raises:** `ValueError` for an unknown method, an unsupported adjoint, or a mode the method
+    cannot do (e.g. forward mode through `RecursiveCheckpointAdjoint`).
+    """
+    if isinstance(method, dfx.AbstractAdjoint):
+        name = _ADJOINT_NAMES.get(type(method))
+        if name is None:
+            raise ValueError(
+                f"unsupported adjoint {type(method).__name__} for `method`; supported: "
+                + ", ".join(c.__name__ for c in _ADJOINT_NAMES)
+            )
+        adjoint = method
+    elif method in FD_METHODS:
+        if mode is not None:
+            raise ValueError(f"`mode` applies to AD methods only, not to {method!r}")
+        return method, None, "fd"
+    elif method in AD_METHODS:
+        name, adjoint = method, AD_METHODS[method].adjoint
+    else:
+        raise ValueError(f"unknown `method` {method!r}; valid: {', '.join(METHODS)}")
+    modes = AD_METHODS[name].modes
+    mode = modes[0] if mode is None else mode
+    if mode not in ("fwd", "rev"):
+        raise ValueError(f"`mode` must be 'fwd' or 'rev', got {mode!r}")
+    if mode not in modes:
+        raise ValueError(
+            f"method {name!r} ({type(adjoint).__name__}) cannot differentiate in {mode!r} mode; "
+            f"it supports {' and '.join(repr(m) for m in modes)} (use 'forward' or 'direct' for "
+            "forward mode, 'reverse', 'backsolve' or 'direct' for reverse mode)"
+        )
+    return name, adjoint, mode
+
+
+# ------------------------------------------------------------------------------ compiled cores
+@eqx.filter_jit
+def _residuals(objective: Objective, theta):
+    return objective.residuals(theta)
+
+
+@eqx.filter_jit
+def _vjp_theta(objective: Objective, theta, cotangent, alpha):
+    """r (m,) and J^T (cotangent + alpha r) (n,)."""
+    r, pullback = jax.vjp(objective.residuals, theta)
+    return r, pullback(cotangent + alpha * r)[0]
+
+
+@eqx.filter_jit
+def _jvp_theta(objective: Objective, theta, tangents):
+    """r (m,) and J V (m, k) for tangents V (k, n)."""
+    push = lambda v: jax.jvp(objective.residuals, (theta,), (v,))
+    return jax.vmap(push, out_axes=(None, 1))(tangents)
+
+
+@eqx.filter_jit
+def _jacrev_theta(objective: Objective, theta):
+    return objective.residuals(theta), jax.jacrev(objective.residuals)(theta)
+
+
+# ------------------------------------------------------------------------------- entry points
+def gradient(
+    objective: Objective,
+    theta,
+    *,
+    method="reverse",
+    mode: str | None = None,
+    jacobian: bool = False,
+    rel_noise: float | None = None,
+    typical_scale: float = 1.0,
+) -> GradientResult:
+    """J(theta) and dJ/dtheta (and, with `jacobian=True`, the residual Jacobian dr/dtheta).
+
+    **Arguments:**
+    - `method`: a name of `METHODS` or a diffrax adjoint instance (e.g.
+      `diffrax.BacksolveAdjoint(solver=...)`); it replaces the objective's `adjoint`.
+    - `mode`: "fwd" or "rev" for AD methods that support both (`"direct"`); default per method.
+    - `jacobian`: also return dr/dtheta (forward mode: free; reverse mode: one reverse pass per
+      residual, which is slow for many residuals, see `residual_jacobian`).
+    - `rel_noise`, `typical_scale`: the finite-difference step rule (module docstring).
+
+    AD methods are pure JAX (usable under `jit`/`vmap`); finite differences evaluate the
+    compiled residuals parameter by parameter and need a concrete `theta`.
+
+    **Raises:** `ValueError` for unknown or unsupported method/mode combinations, `TypeError`
+    for finite differences under a JAX transformation.
+    """
+    name, adjoint, mode = resolve_method(method, mode)
+    theta = jnp.asarray(theta, dtype=float)
+    if mode == "fd":
+        return _finite_differences(objective, theta, name, jacobian, rel_noise, typical_scale)
+    objective = objective.with_adjoint(adjoint)
+    if mode == "fwd":
+        r, jac = _jvp_theta(objective, theta, jnp.eye(theta.size, dtype=theta.dtype))
+        grad = jac.T @ r
+    elif jacobian:
+        r, jac = _jacrev_theta(objective, theta)
+        grad = jac.T @ r
+    else:
+        r, grad = _vjp_theta(objective, theta, jnp.zeros(objective.n_residuals), 1.0)
+        jac = None
+    return GradientResult(0.5 * jnp.sum(r**2), grad, r, jac if jacobian else None, name, mode)
+
+
+def residual_jacobian(objective: Objective, theta, *, mode: str | None = None) -> GradientResult:
+    """The residual Jacobian dr/dtheta (m, n) for Gauss-Newton / Levenberg-Marquardt.
+
+    Default `mode`: forward (`ForwardMode` + one tangent per parameter) when
+    n_residuals >= n_params, which is every realistic measurement; reverse (one reverse pass per
+    residual) otherwise. Measured on the default 13-channel layout (1 s at 200 Hz, 2613
+    residuals): forward mode is orders of magnitude faster (see `benchmarks/README.md`).
+    """
+    if mode is None:
+        mode = "fwd" if objective.n_residuals >= objective.n_params else "rev"
+    method = {"fwd": "forward", "rev": "reverse"}.get(mode)
+    if method is None:
+        raise ValueError(f"`mode` must be 'fwd' or 'rev', got {mode!r}")
+    return gradient(objective, theta, method=method, jacobian=True)
+
+
+# -------------------------------------------------------------------------- finite differences
+def fd_steps(theta, exponent: float, rel_noise: float, typical_scale: float = 1.0) -> np.ndarray:
+    """Per-parameter steps h_i = rel_noise^exponent * max(|theta_i|, typical_scale), rounded so
+    that (theta_i + h_i) - theta_i == h_i."""
+    theta = np.asarray(theta, dtype=float)
+    h = rel_noise**exponent * np.maximum(np.abs(theta), typical_scale)
+    return (theta + h) - theta
+
+
+def default_rel_noise(objective: Objective) -> float:
+    """Relative accuracy of J: max(machine epsilon, rtol of the step-size controller)."""
+    rtol = getattr(objective.residual_model.stepsize_controller, "rtol", 0.0)
+    return max(float(np.finfo(float).eps), float(rtol))
+
+
+def _finite_differences(objective, theta, name, jacobian, rel_noise, typical_scale):
+    if isinstance(theta, jax.core.Tracer):
+        raise TypeError(
+            f"{name!r} evaluates the compiled residuals point by point and needs a concrete "
+            "`theta`; use an AD method under jit/vmap"
+        )
+    rel_noise = default_rel_noise(objective) if rel_noise is None else float(rel_noise)
+    h = fd_steps(theta, FD_METHODS[name], rel_noise, typical_scale)
+    res = lambda th: np.asarray(_residuals(objective, jnp.asarray(th)))
+    base = np.asarray(theta)
+    r0 = res(base)
+    cols = []
+    for i, step in enumerate(h):
+        e = np.zeros_like(base)
+        e[i] = step
+        if name == "fd-forward":
+            cols.append((res(base + e), r0, step))
+        else:
+            cols.append((res(base + e), res(base - e), 2 * step))
+    cost = lambda r: 0.5 * float(np.sum(r**2))
+    grad = np.array([(cost(a) - cost(b)) / d for a, b, d in cols])
+    jac = np.stack([(a - b) / d for a, b, d in cols], axis=1) if jacobian else None
+    return GradientResult(
+        jnp.asarray(cost(r0)), jnp.asarray(grad), jnp.asarray(r0),
+        None if jac is None else jnp.asarray(jac), name, "fd",
+    )
+
+
+# ------------------------------------------------------------------------- scalar-product test
+class ScalarProductTest(eqx.Module):
+    """<J v_j, w> (`lhs`) against <v_j, J^T w> (`rhs`) for k random directions v_j and one
+    random w; `rel_error` = max_j |lhs_j - rhs_j| / max_j max(|lhs_j|, |rhs_j|)."""
+
+    lhs: jax.Array
+    rhs: jax.Array
+    rel_error: jax.Array
+
+
+def scalar_product_test(
+    objective: Objective, theta, *, key, n_directions: int | None = None, method="reverse"
+) -> ScalarProductTest:
+    """The scalar-product test of paper section 5.3 (Kern 2003), through the solver.
+
+    J v comes from forward mode (`jax.jvp` with `ForwardMode`), J^T w from the reverse-mode
+    `method` (default `RecursiveCheckpointAdjoint`). Both differentiate the same discrete solve,
+    so they agree to rounding (about 1e-12 in float64); `"backsolve"` is the continuous adjoint
+    and agrees only to the solver tolerance. `n_directions` defaults to n (so the forward pass
+    shares its compilation with `gradient(..., method="forward")`).
+    """
+    name, adjoint, mode = resolve_method(method)
+    if mode != "rev":
+        raise ValueError(f"`method` must be a reverse-mode method, got {name!r}")
+    theta = jnp.asarray(theta, dtype=float)
+    k = theta.size if n_directions is None else n_directions
+    key_v, key_w = jr.split(key)
+    v = jr.normal(key_v, (k, theta.size), dtype=theta.dtype)
+    w = jr.normal(key_w, (objective.n_residuals,), dtype=theta.dtype)
+    _, jv = _jvp_theta(objective.with_adjoint(dfx.ForwardMode()), theta, v)
+    _, jtw = _vjp_theta(objective.with_adjoint(adjoint), theta, w, 0.0)
+    lhs, rhs = w @ jv, v @ jtw
+    scale = jnp.maximum(jnp.max(jnp.abs(lhs)), jnp.max(jnp.abs(rhs)))
+    return ScalarProductTest(lhs, rhs, jnp.max(jnp.abs(lhs - rhs)) / scale)
+
+
+# ------------------------------------------------------------------------------------ harness
+def _median_time(fn, repeats: int) -> tuple[float, float]:
+    """(time of the first call, median of `repeats` further calls) [s]."""
+    t = time.perf_counter()
+    jax.block_until_ready(fn())
+    first = time.perf_counter() - t
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(fn())
+        times.append(time.perf_counter() - t)
+    return first, statistics.median(times)
+
+
+def _peak_bytes(jitted, *args) -> int:
+    """XLA's compiled memory analysis of `jitted(*args)`: arguments + outputs + temporaries."""
+    stats = jitted.lower(*args).compile().compiled.memory_analysis()
+    peak = getattr(stats, "peak_memory_in_bytes", 0)
+    total = stats.argument_size_in_bytes + stats.output_size_in_bytes + stats.temp_size_in_bytes
+    return int(max(peak, total - stats.alias_size_in_bytes))
+
+
+def _core_memory(objective, theta, adjoint, mode) -> int:
+    if mode == "fd":
+        return _peak_bytes(_residuals, objective, theta)
+    objective = objective.with_adjoint(adjoint)
+    if mode == "fwd":
+        return _peak_bytes(_jvp_theta, objective, theta, jnp.eye(theta.size, dtype=theta.dtype))
+    return _peak_bytes(_vjp_theta, objective, theta, jnp.zeros(objective.n_residuals), 1.0)
+
+
+def reference_gradient(objective: Objective, theta, *, rtol: float = 1e-12, atol: float = 1e-14):
+    """dJ/dtheta by forward mode with the solve at a tight tolerance (PID rtol, atol)."""
+    tight = objective.replace(
+        stepsize_controller=dfx.PIDController(rtol=rtol, atol=atol),
+        max_steps=max(objective.residual_model.max_steps, 200_000),
+    )
+    return gradient(tight, theta, method="forward").grad
+
+
+def gradient_report(
+    objective: Objective, theta, *, methods=METHODS, repeats: int = 5, reference=None
+) -> list[dict]:
+    """Time, accuracy and memory of each gradient method on `objective` at `theta`.
+
+    One record per method: `method`, `mode`, `n_params`, `time_s` (median of `repeats` calls
+    after a first, compiling call), `time_ratio` (over one forward solve, the compiled residuals,
+    timed the same way), `compile_s` (first call minus median), `rel_error`
+    (|g - g_ref| / |g_ref|, 2-norms, against `reference` or `reference_gradient`),
+    `peak_memory_mb` (XLA's compiled memory analysis of the method's main compiled function:
+    arguments + outputs + temporaries; finite differences: that of the residuals), `grad`.
+    """
+    theta = jnp.asarray(theta, dtype=float)
+    g_ref = np.asarray(reference_gradient(objective, theta) if reference is None else reference)
+    solve_first, solve_time = _median_time(lambda: _residuals(objective, theta), repeats)
+    records = [dict(
+        method="forward-solve", mode="-", n_params=int(theta.size), time_s=solve_time,
+        time_ratio=1.0, compile_s=solve_first - solve_time, rel_error=0.0,
+        peak_memory_mb=_core_memory(objective, theta, None, "fd") / 2**20, grad=None,
+    )]
+    for method in methods:
+        name, adjoint, mode = resolve_method(method)
+        first, t = _median_time(lambda: gradient(objective, theta, method=method).grad, repeats)
+        g = np.asarray(gradient(objective, theta, method=method).grad)
+        records.append(dict(
+            method=name, mode=mode, n_params=int(theta.size), time_s=t,
+            time_ratio=t / solve_time, compile_s=max(first - t, 0.0),
+            rel_error=float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref)),
+            peak_memory_mb=_core_memory(objective, theta, adjoint, mode) / 2**20,
+            grad=[float(x) for x in g],
+        ))
+    return records
+
+
+def report_table(records) -> str:
+    """A markdown table of `gradient_report` records."""
+    lines = [
+        "| method | mode | n | time / forward solve | time [ms] | compile [s] | rel. error | peak memory [MB] |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for r in records:
+        lines.append(
+            f"| {r['method']} | {r['mode']} | {r['n_params']} | {r['time_ratio']:.2f} | "
+            f"{1e3 * r['time_s']:.1f} | {r['compile_s']:.1f} | {r['rel_error']:.1e} | "
+            f"{r['peak_memory_mb']:.1f} |"
+        )
+    return "\n".join(lines)
