@@ -35,7 +35,6 @@ from scipy.integrate import solve_ivp
 
 import bogie_jax as bj
 from bogie_jax.batch import batch_runner
-from bogie_jax.model import build_model, track_inputs
 from bogie_jax.simulate import simulate
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 
@@ -43,6 +42,7 @@ from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._common import median_time, write_outputs  # noqa: E402
 from tests.reference.bogie_twin import BogieTwin  # noqa: E402
+from tests.reference.track_twin import track_inputs_fn  # noqa: E402
 
 
 SPEED, DURATION, RATE, RTOL, ATOL = 50.0, 10.0, 200.0, 1e-6, 1e-8
@@ -78,31 +78,21 @@ def reference(params, track):
 
 
 def scipy_runs(params, track, ts):
-    model = build_model(params, speed=SPEED, track=track)
-    inputs = jax.jit(lambda t: track_inputs(model, t))
-    # Tabulate the track inputs on a fine grid once, so the twin's cost is its own physics.
-    grid = np.arange(0.0, DURATION + 1e-3, 1e-3)
-    table = [np.asarray(x) for x in jax.vmap(inputs)(jnp.asarray(grid))]
-
-    def track_fn(t):
-        return tuple(
-            np.stack([[np.interp(t, grid, x[:, i, j]) for j in range(3)] for i in range(2)])
-            for x in table
-        )
-
-    twin = BogieTwin(params, SPEED, track_fn)
+    """RK45 and LSODA on the numpy twin, fed the same C2 spline track as the JAX model."""
+    x_axles = [float(params.geometry.semi_wheelbase), -float(params.geometry.semi_wheelbase)]
+    twin = BogieTwin(params, SPEED, track_inputs_fn(track, SPEED, x_axles))
     out = {}
     for method in ("RK45", "LSODA"):
-        sol_holder = {}
+        holder = {}
 
         def solve():
-            sol_holder["sol"] = solve_ivp(
+            holder["sol"] = solve_ivp(
                 twin.rhs, (0.0, DURATION), np.zeros(20), method=method, t_eval=np.asarray(ts),
                 rtol=RTOL, atol=ATOL,
             )
 
         median, _ = median_time(solve, repeats=5)
-        out[method] = (sol_holder["sol"], median)
+        out[method] = (holder["sol"], median)
     return out
 
 
