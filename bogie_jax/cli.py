@@ -7,6 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from . import _cli_identify, _cli_sensitivity
+
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
@@ -44,6 +46,8 @@ def _build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="simulate the default bogie and write data and plots")
     demo.add_argument("--out", default="demo_out", help="output directory (default demo_out)")
     _add_gradcheck(sub)
+    _cli_identify.add_parser(sub)
+    _cli_sensitivity.add_parser(sub)
     return parser
 
 
@@ -55,22 +59,24 @@ def _add_gradcheck(sub):
         "the selected parameters, and every gradient method timed against one forward solve, "
         "with its error against a forward-mode reference at rtol 1e-12.",
     )
-    g.add_argument("--params", required=True, help="comma-separated parameter names "
-                   "(e.g. primary.kz,yaw_dampers.c) or 'all'")
-    g.add_argument("--json", required=True, help="write the records (a JSON list) to this file")
-    g.add_argument("--vehicle", default="manchester", help="named parameter set (default manchester)")
-    g.add_argument("--methods", default="all", help="comma-separated methods or 'all' "
-                   "(reverse, backsolve, forward, direct, fd-forward, fd-central)")
-    g.add_argument("--speed", type=float, default=50.0, help="forward speed [m/s] (default 50)")
-    g.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default 1)")
-    g.add_argument("--sample-rate", type=float, default=200.0, help="sample rate [Hz] (default 200)")
-    g.add_argument("--track", default="erri-low", help="erri-low | erri-high | fra-1..fra-6 | perfect | PATH.csv")
-    g.add_argument("--seed", type=int, default=0, help="PRNG seed of track and measurement noise")
-    g.add_argument("--offset", type=float, default=0.1,
-                   help="relative offset of the parameters from the truth where gradients are taken (default 0.1)")
-    g.add_argument("--rtol", type=float, default=1e-6, help="solver relative tolerance (default 1e-6)")
-    g.add_argument("--repeats", type=int, default=5, help="timed calls per method, median reported (default 5)")
-    g.add_argument("--plot", default=None, help="write the gradient components by method to this PNG")
+    add = g.add_argument
+    add("--params", required=True,
+        help="comma-separated parameter names (e.g. primary.kz,yaw_dampers.c) or 'all'")
+    add("--json", required=True, help="write the records (a JSON list) to this file")
+    add("--vehicle", default="manchester", help="named parameter set (default manchester)")
+    add("--methods", default="all", help="comma-separated methods or 'all' "
+        "(reverse, backsolve, forward, direct, fd-forward, fd-central)")
+    add("--speed", type=float, default=50.0, help="forward speed [m/s] (default 50)")
+    add("--duration", type=float, default=1.0, help="simulated time [s] (default 1)")
+    add("--sample-rate", type=float, default=200.0, help="sample rate [Hz] (default 200)")
+    add("--track", default="erri-low",
+        help="erri-low | erri-high | fra-1..fra-6 | perfect | PATH.csv (default erri-low)")
+    add("--seed", type=int, default=0, help="PRNG seed of track and measurement noise")
+    add("--offset", type=float, default=0.1, help="relative offset from the true parameters "
+        "at which the gradients are taken (default 0.1)")
+    add("--rtol", type=float, default=1e-6, help="solver relative tolerance (default 1e-6)")
+    add("--repeats", type=int, default=5, help="timed calls per method (median; default 5)")
+    add("--plot", default=None, help="write the gradient components by method to this PNG")
 
 
 def _add_vehicle(p):
@@ -169,13 +175,14 @@ def _gradcheck(args) -> int:
 
     matplotlib.use("Agg")
     from ._tracks import track_from_name
-    from .cost import synthetic_objective
-    from .gradients import gradient_report, METHODS, report_table
+    from .cost import select_parameters, synthetic_objective
+    from .gradients import METHODS, gradient_report, report_table
     from .params import PARAMETER_SETS, parameter_names
     from .plot import plot_gradient_components
 
     if args.vehicle not in PARAMETER_SETS:
-        raise UsageError(f"`--vehicle` must be one of {', '.join(sorted(PARAMETER_SETS))}, got {args.vehicle!r}")
+        valid = ", ".join(sorted(PARAMETER_SETS))
+        raise UsageError(f"`--vehicle` must be one of {valid}, got {args.vehicle!r}")
     if args.plot is not None and not args.plot.lower().endswith(".png"):
         raise UsageError(f"`--plot` must end in .png, got {args.plot!r}")
     if not (1 <= args.repeats <= 1000):
@@ -190,7 +197,9 @@ def _gradcheck(args) -> int:
         raise UsageError(f"unknown `--methods` {', '.join(unknown)}; valid: {', '.join(METHODS)}")
     margin = 2 * float(params.geometry.semi_wheelbase) + 50.0
     try:
-        track = track_from_name(args.track, seed=args.seed, length=args.speed * args.duration + margin)
+        select_parameters(params, names)  # names checked before anything is compiled
+        length = args.speed * args.duration + margin
+        track = track_from_name(args.track, seed=args.seed, length=length)
         objective, theta = synthetic_objective(
             params, track, names, speed=args.speed, duration=args.duration,
             sample_rate=args.sample_rate, key=jr.PRNGKey(args.seed + 1), offset=args.offset,
@@ -222,6 +231,8 @@ COMMANDS = {
     "critical-speed": _critical_speed,
     "demo": _demo,
     "gradcheck": _gradcheck,
+    "identify": _cli_identify.run,
+    "sensitivity": _cli_sensitivity.run,
 }
 
 

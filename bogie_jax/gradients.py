@@ -5,7 +5,7 @@
 | `"reverse"` | reverse-mode AD through the solver, `RecursiveCheckpointAdjoint` | rev |
 | `"backsolve"` | continuous adjoint (the paper's adjoint-state method), `BacksolveAdjoint` | rev |
 | `"forward"` | forward-mode AD through the solver, `ForwardMode` + `jax.jacfwd` | fwd |
-| `"direct"` | `DirectAdjoint` (both modes; meant for Hessians, slow to compile) | rev (or fwd) |
+| `"direct"` | `DirectAdjoint`; its reverse mode is inaccurate here (see below) | fwd (or rev) |
 | `"fd-forward"`, `"fd-central"` | finite differences (paper eq. 13), step rule below | - |
 
 Reverse mode costs a few forward solves whatever the number of parameters n; forward mode pushes
@@ -22,6 +22,7 @@ coordinate). Each h_i is then rounded so that theta_i + h_i - theta_i == h_i exa
 
 import statistics
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import diffrax as dfx
@@ -32,18 +33,30 @@ import jax.random as jr
 import numpy as np
 
 from .cost import Objective
+from .cost._objective import traced_tolerances
 
 
 class _Method(NamedTuple):
-    adjoint: dfx.AbstractAdjoint
+    adjoint: Callable[[int], dfx.AbstractAdjoint]  # max_steps -> adjoint
     modes: tuple[str, ...]  # supported AD modes, the default first
 
 
+def full_checkpoints(max_steps: int) -> dfx.RecursiveCheckpointAdjoint:
+    """`RecursiveCheckpointAdjoint` with one checkpoint per step (`checkpoints = max_steps`).
+
+    With fewer checkpoints the backward pass recomputes runs of steps, and in diffrax 0.7.2 that
+    gives wrong gradients for time-dependent vector fields with `ConstantStepSize` (31 % off on a
+    forced oscillator; `tests/test_gradients.py` keeps the reproducer). One checkpoint per step
+    avoids the recomputation, costs a few hundred bytes per step of memory and is faster.
+    """
+    return dfx.RecursiveCheckpointAdjoint(checkpoints=max_steps)
+
+
 AD_METHODS = {
-    "reverse": _Method(dfx.RecursiveCheckpointAdjoint(), ("rev",)),
-    "backsolve": _Method(dfx.BacksolveAdjoint(), ("rev",)),
-    "forward": _Method(dfx.ForwardMode(), ("fwd",)),
-    "direct": _Method(dfx.DirectAdjoint(), ("rev", "fwd")),
+    "reverse": _Method(full_checkpoints, ("rev",)),
+    "backsolve": _Method(lambda _: dfx.BacksolveAdjoint(), ("rev",)),
+    "forward": _Method(lambda _: dfx.ForwardMode(), ("fwd",)),
+    "direct": _Method(lambda _: dfx.DirectAdjoint(), ("fwd", "rev")),
 }
 FD_METHODS = {"fd-forward": 1 / 2, "fd-central": 1 / 3}  # method -> exponent of eps in h
 METHODS = (*AD_METHODS, *FD_METHODS)
@@ -67,8 +80,11 @@ class GradientResult(eqx.Module):
     mode: str = eqx.field(static=True)
 
 
-def resolve_method(method, mode: str | None = None) -> tuple[str, dfx.AbstractAdjoint | None, str]:
-    """`(name, adjoint, mode)` for a method name or a diffrax adjoint instance.
+def resolve_method(
+    method, mode: str | None = None, max_steps: int = 16_384
+) -> tuple[str, dfx.AbstractAdjoint | None, str]:
+    """`(name, adjoint, mode)` for a method name or a diffrax adjoint instance (`max_steps`
+    sizes the checkpoints of `"reverse"`).
 
     **Raises:** `ValueError` for an unknown method, an unsupported adjoint, or a mode the method
     cannot do (e.g. forward mode through `RecursiveCheckpointAdjoint`).
@@ -86,7 +102,7 @@ def resolve_method(method, mode: str | None = None) -> tuple[str, dfx.AbstractAd
             raise ValueError(f"`mode` applies to AD methods only, not to {method!r}")
         return method, None, "fd"
     elif method in AD_METHODS:
-        name, adjoint = method, AD_METHODS[method].adjoint
+        name, adjoint = method, AD_METHODS[method].adjoint(max_steps)
     else:
         raise ValueError(f"unknown `method` {method!r}; valid: {', '.join(METHODS)}")
     modes = AD_METHODS[name].modes
@@ -112,7 +128,7 @@ def _residuals(objective: Objective, theta):
 def _vjp_theta(objective: Objective, theta, cotangent, alpha):
     """r (m,) and J^T (cotangent + alpha r) (n,)."""
     r, pullback = jax.vjp(objective.residuals, theta)
-    return r, pullback(cotangent + alpha * r)[0]
+    return r, pullback(cotangent + jnp.where(alpha != 0, alpha * r, 0.0))[0]
 
 
 @eqx.filter_jit
@@ -154,7 +170,7 @@ def gradient(
     **Raises:** `ValueError` for unknown or unsupported method/mode combinations, `TypeError`
     for finite differences under a JAX transformation.
     """
-    name, adjoint, mode = resolve_method(method, mode)
+    name, adjoint, mode = resolve_method(method, mode, objective.residual_model.max_steps)
     theta = jnp.asarray(theta, dtype=float)
     if mode == "fd":
         return _finite_differences(objective, theta, name, jacobian, rel_noise, typical_scale)
@@ -166,7 +182,7 @@ def gradient(
         r, jac = _jacrev_theta(objective, theta)
         grad = jac.T @ r
     else:
-        r, grad = _vjp_theta(objective, theta, jnp.zeros(objective.n_residuals), 1.0)
+        r, grad = _vjp_theta(objective, theta, jnp.zeros(objective.n_residuals), jnp.ones(()))
         jac = None
     return GradientResult(0.5 * jnp.sum(r**2), grad, r, jac if jacobian else None, name, mode)
 
@@ -180,11 +196,16 @@ def residual_jacobian(objective: Objective, theta, *, mode: str | None = None) -
     residuals): forward mode is orders of magnitude faster (see `benchmarks/README.md`).
     """
     if mode is None:
-        mode = "fwd" if objective.n_residuals >= objective.n_params else "rev"
+        mode = default_jacobian_mode(objective.n_residuals, objective.n_params)
     method = {"fwd": "forward", "rev": "reverse"}.get(mode)
     if method is None:
         raise ValueError(f"`mode` must be 'fwd' or 'rev', got {mode!r}")
     return gradient(objective, theta, method=method, jacobian=True)
+
+
+def default_jacobian_mode(n_residuals: int, n_params: int) -> str:
+    """ "fwd" (one tangent per parameter) unless there are fewer residuals than parameters."""
+    return "fwd" if n_residuals >= n_params else "rev"
 
 
 # -------------------------------------------------------------------------- finite differences
@@ -225,8 +246,12 @@ def _finite_differences(objective, theta, name, jacobian, rel_noise, typical_sca
     grad = np.array([(cost(a) - cost(b)) / d for a, b, d in cols])
     jac = np.stack([(a - b) / d for a, b, d in cols], axis=1) if jacobian else None
     return GradientResult(
-        jnp.asarray(cost(r0)), jnp.asarray(grad), jnp.asarray(r0),
-        None if jac is None else jnp.asarray(jac), name, "fd",
+        jnp.asarray(cost(r0)),
+        jnp.asarray(grad),
+        jnp.asarray(r0),
+        None if jac is None else jnp.asarray(jac),
+        name,
+        "fd",
     )
 
 
@@ -251,16 +276,14 @@ def scalar_product_test(
     and agrees only to the solver tolerance. `n_directions` defaults to n (so the forward pass
     shares its compilation with `gradient(..., method="forward")`).
     """
-    name, adjoint, mode = resolve_method(method)
-    if mode != "rev":
-        raise ValueError(f"`method` must be a reverse-mode method, got {name!r}")
+    name, adjoint, mode = resolve_method(method, "rev", objective.residual_model.max_steps)
     theta = jnp.asarray(theta, dtype=float)
     k = theta.size if n_directions is None else n_directions
     key_v, key_w = jr.split(key)
     v = jr.normal(key_v, (k, theta.size), dtype=theta.dtype)
     w = jr.normal(key_w, (objective.n_residuals,), dtype=theta.dtype)
     _, jv = _jvp_theta(objective.with_adjoint(dfx.ForwardMode()), theta, v)
-    _, jtw = _vjp_theta(objective.with_adjoint(adjoint), theta, w, 0.0)
+    _, jtw = _vjp_theta(objective.with_adjoint(adjoint), theta, w, jnp.zeros((), theta.dtype))
     lhs, rhs = w @ jv, v @ jtw
     scale = jnp.maximum(jnp.max(jnp.abs(lhs)), jnp.max(jnp.abs(rhs)))
     return ScalarProductTest(lhs, rhs, jnp.max(jnp.abs(lhs - rhs)) / scale)
@@ -297,12 +320,17 @@ def _core_memory(objective, theta, adjoint, mode) -> int:
     return _peak_bytes(_vjp_theta, objective, theta, jnp.zeros(objective.n_residuals), 1.0)
 
 
-def reference_gradient(objective: Objective, theta, *, rtol: float = 1e-12, atol: float = 1e-14):
-    """dJ/dtheta by forward mode with the solve at a tight tolerance (PID rtol, atol)."""
-    tight = objective.replace(
-        stepsize_controller=dfx.PIDController(rtol=rtol, atol=atol),
-        max_steps=max(objective.residual_model.max_steps, 200_000),
-    )
+def reference_gradient(
+    objective: Objective, theta, *, rtol: float = 1e-12, atol: float = 1e-14, max_steps=None
+):
+    """dJ/dtheta by forward mode with the solve at a tight tolerance (PID `rtol`, `atol`).
+
+    The tolerances are traced, so this shares the compilation of `gradient(..., "forward")`
+    unless `max_steps` (default: the objective's) changes.
+    """
+    controller = traced_tolerances(dfx.PIDController(rtol=rtol, atol=atol))
+    settings = {} if max_steps is None else {"max_steps": max_steps}
+    tight = objective.replace(stepsize_controller=controller, **settings)
     return gradient(tight, theta, method="forward").grad
 
 
@@ -321,29 +349,44 @@ def gradient_report(
     theta = jnp.asarray(theta, dtype=float)
     g_ref = np.asarray(reference_gradient(objective, theta) if reference is None else reference)
     solve_first, solve_time = _median_time(lambda: _residuals(objective, theta), repeats)
-    records = [dict(
-        method="forward-solve", mode="-", n_params=int(theta.size), time_s=solve_time,
-        time_ratio=1.0, compile_s=solve_first - solve_time, rel_error=0.0,
-        peak_memory_mb=_core_memory(objective, theta, None, "fd") / 2**20, grad=None,
-    )]
+    records = [
+        dict(
+            method="forward-solve",
+            mode="-",
+            n_params=int(theta.size),
+            time_s=solve_time,
+            time_ratio=1.0,
+            compile_s=solve_first - solve_time,
+            rel_error=0.0,
+            peak_memory_mb=_core_memory(objective, theta, None, "fd") / 2**20,
+            grad=None,
+        )
+    ]
     for method in methods:
-        name, adjoint, mode = resolve_method(method)
+        name, adjoint, mode = resolve_method(method, None, objective.residual_model.max_steps)
         first, t = _median_time(lambda: gradient(objective, theta, method=method).grad, repeats)
         g = np.asarray(gradient(objective, theta, method=method).grad)
-        records.append(dict(
-            method=name, mode=mode, n_params=int(theta.size), time_s=t,
-            time_ratio=t / solve_time, compile_s=max(first - t, 0.0),
-            rel_error=float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref)),
-            peak_memory_mb=_core_memory(objective, theta, adjoint, mode) / 2**20,
-            grad=[float(x) for x in g],
-        ))
+        records.append(
+            dict(
+                method=name,
+                mode=mode,
+                n_params=int(theta.size),
+                time_s=t,
+                time_ratio=t / solve_time,
+                compile_s=max(first - t, 0.0),
+                rel_error=float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref)),
+                peak_memory_mb=_core_memory(objective, theta, adjoint, mode) / 2**20,
+                grad=[float(x) for x in g],
+            )
+        )
     return records
 
 
 def report_table(records) -> str:
     """A markdown table of `gradient_report` records."""
     lines = [
-        "| method | mode | n | time / forward solve | time [ms] | compile [s] | rel. error | peak memory [MB] |",
+        "| method | mode | n | time / forward solve | time [ms] | compile [s] | rel. error "
+        "| peak memory [MB] |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for r in records:

@@ -2,6 +2,14 @@
 
 import numpy as np
 
+from ._plot_identify import plot_estimates as plot_estimates, plot_waterfall as plot_waterfall
+from ._plot_sensitivity import (
+    plot_cost_surface as plot_cost_surface,
+    plot_fim_eigenvalues as plot_fim_eigenvalues,
+    plot_profiles as plot_profiles,
+    plot_sobol_indices as plot_sobol_indices,
+    plot_sweeps as plot_sweeps,
+)
 from .model import DOF_NAMES
 
 

@@ -3,9 +3,9 @@ coordinates: the single definition used by gradients, identification and sensiti
 
 from ._make import make_objective as make_objective
 from ._objective import Objective as Objective, ResidualModel as ResidualModel
+from ._scenario import synthetic_objective as synthetic_objective
 from ._selection import (
-    get_parameter as get_parameter,
     ParameterSelection as ParameterSelection,
+    get_parameter as get_parameter,
     select_parameters as select_parameters,
 )
-from ._scenario import synthetic_objective as synthetic_objective

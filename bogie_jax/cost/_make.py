@@ -11,7 +11,7 @@ from ..measure._measurement import check_channels_in_layout
 from ..params import BogieParams, ModelOptions
 from ..simulate import default_controller, sample_times
 from ..track import TrackIrregularity
-from ._objective import Objective, ResidualModel
+from ._objective import Objective, ResidualModel, traced_tolerances
 from ._selection import select_parameters
 
 
@@ -27,7 +27,7 @@ def make_objective(
     options: ModelOptions = ModelOptions(),
     solver: dfx.AbstractSolver = dfx.Tsit5(),
     stepsize_controller: dfx.AbstractStepSizeController | None = None,
-    adjoint: dfx.AbstractAdjoint = dfx.RecursiveCheckpointAdjoint(),
+    adjoint: dfx.AbstractAdjoint | None = None,
     max_steps: int = 16_384,
     dt0: float | None = 1e-3,
     throw: bool = False,
@@ -45,9 +45,10 @@ def make_objective(
       must have a sensor of that name and unit; extra sensors are ignored.
     - `weights`: W per channel [1/unit^2]: `None` = 1 / noise_std^2 of each sensor, an array
       (n_channels,), or `{channel: weight}` (others keep the default). Must be finite, > 0.
-    - `options`, `solver`, `stepsize_controller` (default PID rtol 1e-6, atol 1e-9), `adjoint`,
-      `max_steps`, `dt0`, `throw`, `y0`: the solve (see `simulate`). With `throw=False` a failed
-      solve gives infinite residuals instead of an error.
+    - `options`, `solver`, `stepsize_controller` (default PID rtol 1e-6, atol 1e-9), `adjoint`
+      (default `RecursiveCheckpointAdjoint(checkpoints=max_steps)`, see
+      `bogie_jax.gradients.full_checkpoints`), `max_steps`, `dt0`, `throw`, `y0`: the solve (see
+      `simulate`). With `throw=False` a failed solve gives infinite residuals instead of an error.
 
     **Raises:** `ValueError` (`MeasurementError` for the data) naming the problem.
     """
@@ -70,8 +71,12 @@ def make_objective(
         sample_rate=rate,
         options=options,
         solver=solver,
-        stepsize_controller=default_controller() if stepsize_controller is None else stepsize_controller,
-        adjoint=adjoint,
+        stepsize_controller=traced_tolerances(
+            default_controller() if stepsize_controller is None else stepsize_controller
+        ),
+        adjoint=dfx.RecursiveCheckpointAdjoint(checkpoints=max_steps)
+        if adjoint is None
+        else adjoint,
         max_steps=max_steps,
         dt0=dt0,
         throw=throw,
@@ -92,8 +97,10 @@ def _check_sampling(measurement) -> tuple[float, float]:
     times = np.asarray(measurement.times, dtype=float)
     rate = measurement.sample_rate
     expected = np.asarray(sample_times(float(times[-1]), rate))
-    if abs(times[0]) > 1e-9 or expected.shape != times.shape or not np.allclose(
-        expected, times, rtol=0, atol=1e-6 / rate
+    if (
+        abs(times[0]) > 1e-9
+        or expected.shape != times.shape
+        or not np.allclose(expected, times, rtol=0, atol=1e-6 / rate)
     ):
         raise MeasurementError(
             f"the objective simulates from t = 0 at the sample times k / f_s; the measurement "
@@ -115,7 +122,9 @@ def _weights(weights, sensors, channels) -> np.ndarray:
     else:
         w = np.asarray(weights, dtype=float)
         if w.shape != (len(channels),):
-            raise ValueError(f"`weights` must have shape ({len(channels)},) (one per channel), got {w.shape}")
+            raise ValueError(
+                f"`weights` must have shape ({len(channels)},) (one per channel), got {w.shape}"
+            )
     bad = ~(np.isfinite(w) & (w > 0))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])

@@ -14,14 +14,24 @@ import dataclasses
 import diffrax as dfx
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ..measure import readings_from_states
 from ..model import build_model
 from ..params import BogieParams, ModelOptions
-from ..simulate import simulate, Trajectory
+from ..simulate import Trajectory, simulate
 from ..track import TrackIrregularity
 from ._selection import ParameterSelection
+
+
+def traced_tolerances(controller):
+    """A `PIDController` with its `rtol`/`atol` as 0-d arrays: traced rather than compile-time
+    constants, so objectives differing only in tolerance share one compilation."""
+    if isinstance(controller, dfx.PIDController):
+        tols = (np.asarray(controller.rtol, dtype=float), np.asarray(controller.atol, dtype=float))
+        return eqx.tree_at(lambda c: (c.rtol, c.atol), controller, tols)
+    return controller
 
 
 class ResidualModel(eqx.Module):
@@ -58,10 +68,19 @@ class ResidualModel(eqx.Module):
     def simulate(self, params: BogieParams) -> Trajectory:
         """The simulated run at parameters `params`."""
         return simulate(
-            params, self.track, speed=self.speed, duration=self.duration,
-            sample_rate=self.sample_rate, y0=self.y0, options=self.options, solver=self.solver,
-            stepsize_controller=self.stepsize_controller, adjoint=self.adjoint,
-            max_steps=self.max_steps, dt0=self.dt0, throw=self.throw,
+            params,
+            self.track,
+            speed=self.speed,
+            duration=self.duration,
+            sample_rate=self.sample_rate,
+            y0=self.y0,
+            options=self.options,
+            solver=self.solver,
+            stepsize_controller=self.stepsize_controller,
+            adjoint=self.adjoint,
+            max_steps=self.max_steps,
+            dt0=self.dt0,
+            throw=self.throw,
         )
 
     def _predict(self, params):
@@ -85,9 +104,12 @@ class Objective(eqx.Module):
     """J(theta) = 1/2 |r(theta)|^2 over the selected parameters theta (paper eq. 12).
 
     `residuals(theta, args)` has the optimistix signature (`args` is ignored), so
-    `optx.least_squares(objective.residuals, solver, theta0)` works. Pure JAX: use it under
-    `jax.jit`/`eqx.filter_jit`, `jax.vmap` (e.g. over theta) and every AD transform the solver's
-    `adjoint` supports. Build it with `make_objective`.
+    `optx.least_squares(objective.residuals, solver, theta0)` works. Pure JAX: compile it with the
+    objective as an argument, `eqx.filter_jit(lambda obj, th: obj.cost(th))(objective, theta)`
+    (`jax.jit(objective.cost)` fails: a module holding arrays is not hashable; closing over the
+    objective in `jax.jit` works but lets XLA fold the parameters into constants, which rounds
+    differently); `jax.vmap` (e.g. over theta) and every AD transform the solver's `adjoint`
+    supports work. Build it with `make_objective`.
 
     - `selection`: the `ParameterSelection` (names, units, bounds, transforms);
     - `residual_model`: the `ResidualModel` (data, weights, run, sensors, solver settings).
@@ -144,10 +166,13 @@ class Objective(eqx.Module):
         unknown = set(solver_settings) - allowed
         if unknown:
             raise ValueError(f"cannot replace {sorted(unknown)}; valid: {sorted(allowed)}")
+        if "stepsize_controller" in solver_settings:
+            solver_settings["stepsize_controller"] = traced_tolerances(
+                solver_settings["stepsize_controller"]
+            )
         model = dataclasses.replace(self.residual_model, **solver_settings)
         return Objective(self.selection, model)
 
     def with_adjoint(self, adjoint: dfx.AbstractAdjoint) -> "Objective":
         """A copy that differentiates the solve with `adjoint`."""
         return self.replace(adjoint=adjoint)
-

@@ -30,15 +30,29 @@ def synthetic_objective(
     scaled by (1 + `offset`) (clipped into its bounds). J(0) is the noise level; J(theta0) > 0.
 
     `key`: PRNG key for the measurement noise (None: noise-free). Other keyword arguments go to
-    `make_objective` (bounds, weights, solver settings) and, for `stepsize_controller` and
-    `solver`, also to the simulation of the data.
+    `make_objective` (bounds, weights, solver settings) and, for `solver`,
+    `stepsize_controller`, `dt0` and `y0`, also to the simulation of the data.
     """
-    sim_kwargs = {k: objective_kwargs[k] for k in ("solver", "stepsize_controller", "y0") if k in objective_kwargs}
+    sim_kwargs = {
+        k: objective_kwargs[k]
+        for k in ("solver", "stepsize_controller", "dt0", "y0")
+        if k in objective_kwargs
+    }
     measurement = synthetic_measurement(
-        params, track, speed=speed, duration=duration, sample_rate=sample_rate, sensors=sensors,
-        key=key, track_name=track_name, options=options, **sim_kwargs,
+        params,
+        track,
+        speed=speed,
+        duration=duration,
+        sample_rate=sample_rate,
+        sensors=sensors,
+        key=key,
+        track_name=track_name,
+        options=options,
+        **sim_kwargs,
     )
-    objective = make_objective(measurement, params, track, names, sensors=sensors, options=options, **objective_kwargs)
+    objective = make_objective(
+        measurement, params, track, names, sensors=sensors, options=options, **objective_kwargs
+    )
     sel = objective.selection
     start = np.asarray(sel.nominal) * (1.0 + offset)
     lo, hi = np.asarray(sel.lower), np.asarray(sel.upper)

@@ -146,7 +146,9 @@ def _check_names(params, names) -> tuple[str, ...]:
     names = tuple(names)
     valid = tuple(parameter_specs(params))
     if not names:
-        raise ValueError(f"`names` is empty: select at least one parameter; valid: {', '.join(valid)}")
+        raise ValueError(
+            f"`names` is empty: select at least one parameter; valid: {', '.join(valid)}"
+        )
     for name in names:
         if name not in valid:
             close = difflib.get_close_matches(str(name), valid, n=3)
@@ -171,7 +173,9 @@ def _bounds_per_name(names, bounds) -> dict:
         raise TypeError(f"`bounds` must be None, 'spec' or a mapping, got {type(bounds).__name__}")
     extra = [k for k in bounds if k not in names]
     if extra:
-        raise ValueError(f"`bounds` given for parameters that are not selected: {', '.join(map(str, extra))}")
+        raise ValueError(
+            f"`bounds` given for parameters that are not selected: {', '.join(map(str, extra))}"
+        )
     return dict(bounds)
 
 

@@ -6,6 +6,7 @@ from ._annealing import (
     fit_hybrid as fit_hybrid,
     simulated_annealing as simulated_annealing,
 )
+from ._jacobian import JacobianResiduals as JacobianResiduals
 from ._local import (
     LOCAL_METHODS as LOCAL_METHODS,
     AbstractLocalMethod as AbstractLocalMethod,
@@ -29,4 +30,11 @@ from ._problem import (
     BoxTransform as BoxTransform,
     LeastSquaresProblem as LeastSquaresProblem,
     as_problem as as_problem,
+)
+from ._scenarios import (
+    SCENARIOS as SCENARIOS,
+    Scenario as Scenario,
+    SyntheticProblem as SyntheticProblem,
+    scenario_problem as scenario_problem,
+    tolerance_bounds as tolerance_bounds,
 )

@@ -75,11 +75,21 @@ def as_problem(problem) -> LeastSquaresProblem:
     """Accept a `LeastSquaresProblem` or an `Objective`-like object.
 
     An objective is anything with `residuals(theta, args)` and a transform attribute named
-    `selection` (as `bogie_jax.cost.Objective` has) or `transform`.
+    `selection` (as `bogie_jax.cost.Objective` has) or `transform`. With `selection`, the
+    residuals are wrapped in `JacobianResiduals` (the Jacobian materialised once per
+    linearisation by forward mode; give the objective an adjoint that supports forward mode,
+    e.g. `objective.with_adjoint(diffrax.ForwardMode())`).
     """
     if isinstance(problem, LeastSquaresProblem):
         return problem
     transform = getattr(problem, "selection", None) or getattr(problem, "transform", None)
+    selection = getattr(problem, "selection", None)
+    if callable(getattr(problem, "residuals", None)) and selection is not None:
+        # A simulation objective: residuals with a materialised forward-mode Jacobian (one
+        # tangent solve per linearisation instead of one per Jacobian-vector product).
+        from ._jacobian import JacobianResiduals
+
+        return LeastSquaresProblem(JacobianResiduals(problem), transform, None)
     if callable(getattr(problem, "residuals", None)) and transform is not None:
         # A bound method of an eqx.Module is itself a pytree: the objective's arrays stay leaves.
         return LeastSquaresProblem(problem.residuals, transform, None)

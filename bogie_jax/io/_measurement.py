@@ -55,9 +55,16 @@ def save_measurement(path, measurement: Measurement) -> Path:
     times, data = np.asarray(m.times, dtype=float), np.asarray(m.data, dtype=float)
     if suffix == ".npz":
         np.savez(
-            path, times=times, data=data, channels=np.array(m.channels), units=np.array(m.units),
-            speed=np.asarray(m.speed, dtype=float), track=np.array(m.track),
-            layout=np.array(m.layout), sample_rate_hz=np.array(m.sample_rate), format=np.array(FORMAT),
+            path,
+            times=times,
+            data=data,
+            channels=np.array(m.channels),
+            units=np.array(m.units),
+            speed=np.asarray(m.speed, dtype=float),
+            track=np.array(m.track),
+            layout=np.array(m.layout),
+            sample_rate_hz=np.array(m.sample_rate),
+            format=np.array(FORMAT),
         )
         return path
     with open(path, "w", encoding="utf-8") as f:
@@ -106,7 +113,9 @@ def _read_npz(name):
     with np.load(name, allow_pickle=False) as z:
         missing = [k for k in _REQUIRED_NPZ if k not in z.files]
         if missing:
-            raise MeasurementError(f"missing arrays {', '.join(missing)} (have {', '.join(z.files)})")
+            raise MeasurementError(
+                f"missing arrays {', '.join(missing)} (have {', '.join(z.files)})"
+            )
         channels, units = z["channels"], z["units"]
         for label, a in (("channels", channels), ("units", units)):
             if a.ndim != 1:
@@ -115,9 +124,12 @@ def _read_npz(name):
         if speed.shape != ():
             raise MeasurementError(f"`speed` must be a scalar, got shape {speed.shape}")
         fields = dict(
-            times=z["times"].astype(float), data=z["data"].astype(float),
-            channels=tuple(str(c) for c in channels), units=tuple(str(u) for u in units),
-            speed=float(speed), track=str(z["track"]) if "track" in z.files else "",
+            times=z["times"].astype(float),
+            data=z["data"].astype(float),
+            channels=tuple(str(c) for c in channels),
+            units=tuple(str(u) for u in units),
+            speed=float(speed),
+            track=str(z["track"]) if "track" in z.files else "",
             layout=str(z["layout"]) if "layout" in z.files else "",
         )
         rate = float(z["sample_rate_hz"]) if "sample_rate_hz" in z.files else None
@@ -135,7 +147,11 @@ def _read_csv(name):
                 continue
             if text.startswith("#"):
                 key, sep, value = text[1:].partition(":")
-                if header is None and sep and key.strip() in ("speed_m_s", "sample_rate_hz", "track", "layout"):
+                if (
+                    header is None
+                    and sep
+                    and key.strip() in ("speed_m_s", "sample_rate_hz", "track", "layout")
+                ):
                     meta[key.strip()] = value.strip()
                 continue
             if header is None:
@@ -152,9 +168,13 @@ def _read_csv(name):
             raise MeasurementError(f"missing metadata line `# {key}: <value>` before the header")
     table = np.asarray(rows)
     fields = dict(
-        times=table[:, 0], data=table[:, 1:], channels=tuple(c for c, _ in header),
-        units=tuple(u for _, u in header), speed=_number(meta["speed_m_s"], "speed_m_s"),
-        track=meta.get("track", ""), layout=meta.get("layout", ""),
+        times=table[:, 0],
+        data=table[:, 1:],
+        channels=tuple(c for c, _ in header),
+        units=tuple(u for _, u in header),
+        speed=_number(meta["speed_m_s"], "speed_m_s"),
+        track=meta.get("track", ""),
+        layout=meta.get("layout", ""),
     )
     if not np.all(np.isfinite(fields["times"])):
         i = int(np.flatnonzero(~np.isfinite(fields["times"]))[0])
@@ -172,7 +192,9 @@ def _number(text, key) -> float:
 def _parse_header(text, number):
     cells = [c.strip() for c in text.split(",")]
     if cells[0] != "time_s":
-        raise MeasurementError(f"line {number}: the header must start with `time_s`, got {cells[0]!r}")
+        raise MeasurementError(
+            f"line {number}: the header must start with `time_s`, got {cells[0]!r}"
+        )
     if len(cells) < 2:
         raise MeasurementError(f"line {number}: the header has no channel columns")
     out = []
@@ -200,5 +222,7 @@ def _parse_row(text, number, width):
         try:
             row.append(float(cell))
         except ValueError:
-            raise MeasurementError(f"line {number}, column {column}: expected a number, got {cell!r}") from None
+            raise MeasurementError(
+                f"line {number}, column {column}: expected a number, got {cell!r}"
+            ) from None
     return row

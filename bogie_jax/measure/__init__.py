@@ -10,14 +10,14 @@ from ._locations import (
     AbstractLocation as AbstractLocation,
     Axlebox as Axlebox,
     FramePoint as FramePoint,
+    SampleState as SampleState,
     point_motion as point_motion,
     sample_state as sample_state,
-    SampleState as SampleState,
 )
 from ._measurement import (
-    check_measurement as check_measurement,
     Measurement as Measurement,
     MeasurementError as MeasurementError,
+    check_measurement as check_measurement,
 )
 from ._sensors import (
     AbstractSensor as AbstractSensor,

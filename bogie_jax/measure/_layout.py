@@ -4,7 +4,7 @@ import json
 
 from ..params import BogieParams
 from ._locations import Axlebox, FramePoint
-from ._sensors import Accelerometer, AbstractSensor, RateGyro, sensor_from_description
+from ._sensors import AbstractSensor, Accelerometer, RateGyro, sensor_from_description
 
 
 def default_sensor_layout(params: BogieParams) -> tuple[AbstractSensor, ...]:
@@ -23,7 +23,9 @@ def default_sensor_layout(params: BogieParams) -> tuple[AbstractSensor, ...]:
     for ws, x in ((1, a), (2, -a)):
         for side, sign in (("L", 1.0), ("R", -1.0)):
             point = FramePoint(x, sign * b, 0.0)
-            sensors += [Accelerometer(f"frame_{ws}{side}_{axis}", point, axis) for axis in ("y", "z")]
+            sensors += [
+                Accelerometer(f"frame_{ws}{side}_{axis}", point, axis) for axis in ("y", "z")
+            ]
     sensors.append(RateGyro("frame_yaw_rate", "z"))
     for ws in (1, 2):
         for side, name in (("L", "left"), ("R", "right")):

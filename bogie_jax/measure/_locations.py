@@ -16,8 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ..model import BogieModel, track_inputs
-from ..model import _kinematics as kin
+from ..model import BogieModel, _kinematics as kin, track_inputs
 
 
 SIDES = {"left": 1.0, "right": -1.0}
@@ -124,7 +123,9 @@ def point_motion(location: AbstractLocation, model: BogieModel, state: SampleSta
     zero, one = jnp.zeros((), q.dtype), jnp.ones((), q.dtype)
 
     def path(s):
-        return location.position(q + s * qd + 0.5 * s**2 * qdd, w + s * wd + 0.5 * s**2 * wdd, model)
+        return location.position(
+            q + s * qd + 0.5 * s**2 * qdd, w + s * wd + 0.5 * s**2 * wdd, model
+        )
 
     def with_rate(s):
         return jax.jvp(path, (s,), (one,))

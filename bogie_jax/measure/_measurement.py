@@ -55,13 +55,17 @@ class Measurement(eqx.Module):
     def sensors(self):
         """The sensors of `layout` (in layout order). **Raises:** `ValueError` if there is none."""
         if not self.layout:
-            raise MeasurementError("this measurement has no sensor layout; pass `sensors` explicitly")
+            raise MeasurementError(
+                "this measurement has no sensor layout; pass `sensors` explicitly"
+            )
         return sensors_from_layout(self.layout)
 
     def channel(self, name: str):
         """The data column (n,) of channel `name`."""
         if name not in self.channels:
-            raise MeasurementError(f"unknown channel {name!r}; channels: {', '.join(self.channels)}")
+            raise MeasurementError(
+                f"unknown channel {name!r}; channels: {', '.join(self.channels)}"
+            )
         return self.data[:, self.channels.index(name)]
 
 
@@ -104,7 +108,9 @@ def check_measurement(m: Measurement, *, sample_rate: float | None = None) -> No
 def check_times(times: np.ndarray, sample_rate: float | None = None) -> None:
     """1-D, finite, strictly increasing, uniformly spaced; spacing 1/`sample_rate` if given."""
     if times.ndim != 1 or times.size < 2:
-        raise MeasurementError(f"`times` must be 1-D with at least 2 samples, got shape {times.shape}")
+        raise MeasurementError(
+            f"`times` must be 1-D with at least 2 samples, got shape {times.shape}"
+        )
     if not np.all(np.isfinite(times)):
         raise MeasurementError(f"`times` must be finite; got {times[~np.isfinite(times)][0]!r}")
     steps = np.diff(times)
@@ -119,9 +125,9 @@ def check_times(times: np.ndarray, sample_rate: float | None = None) -> None:
     if bad.size:
         i = int(bad[0]) + 1
         raise MeasurementError(
-            f"mismatched sample rates: `times` must be uniformly spaced; the step before sample {i} "
-            f"is {steps[i - 1]:.9g} s ({1 / steps[i - 1]:.6g} Hz), the first is {steps[0]:.9g} s "
-            f"({1 / steps[0]:.6g} Hz)"
+            f"mismatched sample rates: `times` must be uniformly spaced; the step before sample "
+            f"{i} is {steps[i - 1]:.9g} s ({1 / steps[i - 1]:.6g} Hz), the first is "
+            f"{steps[0]:.9g} s ({1 / steps[0]:.6g} Hz)"
         )
     if sample_rate is not None:
         rate = (times.size - 1) / (times[-1] - times[0])
@@ -135,7 +141,9 @@ def check_times(times: np.ndarray, sample_rate: float | None = None) -> None:
 def _check_names(channels) -> None:
     for name in channels:
         if not isinstance(name, str) or not name or "," in name or "[" in name:
-            raise MeasurementError(f"channel names must be non-empty without ',' or '[', got {name!r}")
+            raise MeasurementError(
+                f"channel names must be non-empty without ',' or '[', got {name!r}"
+            )
     dups = sorted({n for n in channels if channels.count(n) > 1})
     if dups:
         raise MeasurementError(f"channel names must be unique; repeated: {', '.join(dups)}")

@@ -20,9 +20,8 @@ import numpy as np
 from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, Float
 
-from ..model import BogieModel
-from ..model import _kinematics as kin
-from ._locations import AbstractLocation, location_from_description, point_motion, SampleState
+from ..model import BogieModel, _kinematics as kin
+from ._locations import AbstractLocation, SampleState, location_from_description, point_motion
 
 
 AXES = ("x", "y", "z")
@@ -61,14 +60,18 @@ class AbstractSensor(eqx.Module):
 
     def __check_init__(self):
         if not isinstance(self.name, str) or not self.name or "," in self.name or "[" in self.name:
-            raise ValueError(f"sensor `name` must be a non-empty string without ',' or '[', got {self.name!r}")
+            raise ValueError(
+                f"sensor `name` must be a non-empty string without ',' or '[', got {self.name!r}"
+            )
         axis = getattr(self, "axis", "x")
         if axis not in AXES:
             raise ValueError(f"sensor {self.name!r}: `axis` must be one of {AXES}, got {axis!r}")
         if not hasattr(self.noise_std, "aval"):
             std = float(self.noise_std)
             if not (np.isfinite(std) and std > 0):
-                raise ValueError(f"sensor {self.name!r}: `noise_std` must be > 0 [{self.unit}], got {std!r}")
+                raise ValueError(
+                    f"sensor {self.name!r}: `noise_std` must be > 0 [{self.unit}], got {std!r}"
+                )
 
 
 class Accelerometer(AbstractSensor):
@@ -150,7 +153,10 @@ def sensor_from_description(d: dict) -> AbstractSensor:
         if kwargs.get(key) is not None:
             kwargs[key] = location_from_description(kwargs[key])
     if d.get("unit", cls.unit) != cls.unit:
-        raise ValueError(f"sensor {d.get('name')!r}: unit {d['unit']!r} does not match {cls.__name__} ({cls.unit})")
+        raise ValueError(
+            f"sensor {d.get('name')!r}: unit {d['unit']!r} does not match "
+            f"{cls.__name__} ({cls.unit})"
+        )
     try:
         return cls(**kwargs)
     except TypeError as e:

@@ -7,9 +7,9 @@ import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
-from ..model import accelerations, BogieModel, build_model
+from ..model import BogieModel, accelerations, build_model
 from ..params import BogieParams, ModelOptions
-from ..simulate import simulate, Trajectory
+from ..simulate import Trajectory, simulate
 from ..track import TrackIrregularity
 from ._layout import check_sensor_names, default_sensor_layout, layout_description
 from ._locations import sample_state
@@ -77,6 +77,7 @@ def synthetic_measurement(
     solver: dfx.AbstractSolver = dfx.Tsit5(),
     stepsize_controller: dfx.AbstractStepSizeController | None = None,
     max_steps: int = 100_000,
+    dt0: float | None = 1e-3,
     y0=None,
 ) -> Measurement:
     """Simulate `params` on `track` and read `sensors` (default `default_sensor_layout(params)`).
@@ -87,7 +88,7 @@ def synthetic_measurement(
       `noise_scale * sensor.noise_std` per channel; `None` gives noise-free data. Sensor biases
       are always added.
     - `track_name`: the track reference stored in the measurement.
-    - `options`, `solver`, `stepsize_controller`, `max_steps`, `y0`: passed to `simulate`.
+    - `options`, `solver`, `stepsize_controller`, `max_steps`, `dt0`, `y0`: passed to `simulate`.
 
     **Returns:** a `Measurement` whose `layout` describes `sensors`.
 
@@ -96,8 +97,13 @@ def synthetic_measurement(
     sensors = default_sensor_layout(params) if sensors is None else tuple(sensors)
     layout = layout_description(sensors)
     kwargs = dict(
-        options=options, solver=solver, stepsize_controller=stepsize_controller,
-        max_steps=max_steps, y0=y0, throw=False,
+        options=options,
+        solver=solver,
+        stepsize_controller=stepsize_controller,
+        max_steps=max_steps,
+        dt0=dt0,
+        y0=y0,
+        throw=False,
     )
     ts, clean, ok = _clean_channels(params, track, speed, sensors, duration, sample_rate, kwargs)
     if not bool(ok):

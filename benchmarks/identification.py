@@ -1,0 +1,336 @@
+"""Identification benchmark (issue 4, item 7).
+
+Scenarios with 3, 6 and 10 selected parameters (`primary3`, `primary6`, `all10` of
+`bogie_jax.identify._scenarios`: Manchester bogie, true values offset 10-15 % from nominal, search
+inside the +-50 % tolerance band), noise-free and with 2 % noise (Gaussian, standard deviation 2 %
+of each channel's RMS, weighted by its inverse variance). Per trial (new noise and a new start
+design per trial) and method:
+
+- success: every selected parameter within 1 % of the truth (noise-free), or every truth inside
+  its reported 95 % interval (noisy; for simulated annealing the interval is computed at its
+  best point by the same Gauss-Newton statistics);
+- global: the final cost within 1e-6 (relative, + 1e-9 absolute) of the lowest cost any method
+  reached in that trial;
+- forward solves (cost/residual evaluations; for the least-squares methods each also carries the
+  forward-mode Jacobian) and wall time (after compilation).
+
+Methods: single-start LM (from the nominal values), multistart LM (`--starts`, LHS design, one
+vmapped batch sharded over the 2 CPU devices), BFGS and Nelder-Mead and pattern search (from the
+nominal values), simulated annealing (one chain of `--sa-iter` evaluations from the nominal
+values) and the hybrid (`--hybrid-chains` annealing chains of `--hybrid-iter`, then LM from each
+best point). Finally the batched multistart against a Python loop of the same fits (same starts).
+
+The batched fits take the objective as a (broadcast) batch input rather than a closure, so one
+compilation serves every trial of a scenario.
+
+Run: `python benchmarks/identification.py [--trials 20] [--duration S] [--scenarios primary3,...]`
+(writes results/identification.json and results/identification.md).
+"""
+
+import os
+
+
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import jax
+
+
+jax.config.update("jax_enable_x64", True)
+# The cache the tests use (programs with host callbacks, e.g. the solves, are not stored).
+jax.config.update(
+    "jax_compilation_cache_dir", str(Path(__file__).resolve().parents[1] / ".jax_cache")
+)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+import equinox as eqx
+import jax.random as jr
+import numpy as np
+
+from bogie_jax.identify import SimulatedAnnealing, fit
+from bogie_jax.identify._annealing import anneal_theta
+from bogie_jax.identify._batched import BatchedFits
+from bogie_jax.identify._local import statistics
+from bogie_jax.identify._multistart import design_starts
+from bogie_jax.identify._problem import as_problem, start_theta
+from bogie_jax.identify._scenarios import relative_errors, scenario_problem
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks._common import write_outputs  # noqa: E402
+
+
+METHODS = ("lm", "multistart-lm", "bfgs", "nelder-mead", "pattern", "annealing", "hybrid")
+
+
+_stats = eqx.filter_jit(statistics)
+
+
+def _summary(problem, theta, fevs, jevs, wall, truth, noisy):
+    s = _stats(problem, theta, 1e-6)
+    est = np.asarray(s["estimates"])
+    ci = np.asarray(s["ci95"])
+    inside = bool(np.all((ci[:, 0] <= truth) & (truth <= ci[:, 1])))
+    rel = relative_errors(est, truth)
+    return dict(
+        cost=float(s["cost"]),
+        max_rel_error=float(rel.max()),
+        success=inside if noisy else bool(rel.max() < 0.01),
+        inside_ci=inside,
+        forward_solves=int(fevs),
+        jacobians=int(jevs),
+        wall_time=float(wall),
+    )
+
+
+def run_trial(sc, names, trial, noisy, args, cache):
+    key = jr.PRNGKey(1000 * trial + 7)
+    sp = scenario_problem(
+        sc,
+        names,
+        key=key if noisy else None,
+        relative_noise=0.02 if noisy else None,
+        duration=args.duration,
+        rtol=args.rtol,
+    )
+    obj, truth = sp.objective, sp.truth
+    problem = as_problem(obj)
+    n = truth.size
+    theta_nom = start_theta(problem.transform, None)
+    out = {}
+    for m in ("lm", "bfgs", "nelder-mead", "pattern"):
+        if m not in args.methods:
+            continue
+        steps = args.max_steps if m in ("lm", "bfgs") else args.dfo_steps
+        if trial == 0:  # compile outside the timing (fit's wall time includes compilation)
+            fit(obj, method=m, max_steps=steps, throw=False)
+        r = fit(obj, method=m, max_steps=steps, throw=False)
+        out[m] = _summary(
+            problem, r.theta, r.num_fn_evals, r.num_jac_evals, r.wall_time, truth, noisy
+        )
+    if "annealing" in args.methods:
+        sched = SimulatedAnnealing(n_iter=args.sa_iter, step_size=0.5)
+        f = cache.setdefault(("sa", n), eqx.filter_jit(anneal_theta))
+        if trial == 0:
+            jax.block_until_ready(f(problem, theta_nom, jr.fold_in(key, 1), sched))  # compile
+        tic = time.perf_counter()
+        best, _, _, nfev = jax.block_until_ready(f(problem, theta_nom, jr.fold_in(key, 1), sched))
+        out["annealing"] = _summary(problem, best, nfev, 0, time.perf_counter() - tic, truth, noisy)
+    design_key = jr.fold_in(key, 2)
+    if "multistart-lm" in args.methods:
+        if ("ms", n) not in cache:
+            cache[("ms", n)] = BatchedFits(obj, "lm", args.max_steps)
+        bf = cache[("ms", n)]
+        thetas = design_starts(problem, design_key, args.starts, "lhs")
+        keys = jr.split(key, args.starts)
+        if trial == 0:
+            bf(obj, thetas, keys)  # compile outside the timing
+        tic = time.perf_counter()
+        batch = bf(obj, thetas, keys)
+        wall = time.perf_counter() - tic
+        lo, costs = batch.outputs
+        costs = np.where(np.asarray(batch.failed), np.inf, np.asarray(costs))
+        b = int(np.argmin(costs))
+        out["multistart-lm"] = _summary(
+            problem,
+            lo.theta[b],
+            np.asarray(lo.num_fn_evals).sum(),
+            np.asarray(lo.num_jac_evals).sum(),
+            wall,
+            truth,
+            noisy,
+        )
+        out["multistart-lm"]["failed_starts"] = int(np.asarray(batch.failed).sum())
+        out["multistart-lm"]["starts_at_best"] = int(np.sum(costs <= costs[b] * (1 + 1e-6) + 1e-9))
+        if trial == 0 and args.loop:
+            out["_loop"] = loop_vs_batch(obj, problem, thetas, wall, args)
+    if "hybrid" in args.methods:
+        sched = SimulatedAnnealing(n_iter=args.hybrid_iter, step_size=0.5)
+        bf = cache.setdefault(("hy", n), BatchedFits(obj, "lm", args.max_steps, schedule=sched))
+        thetas = design_starts(problem, jr.fold_in(key, 3), args.hybrid_chains, "lhs")
+        keys = jr.split(jr.fold_in(key, 4), args.hybrid_chains)
+        if trial == 0:
+            bf(obj, thetas, keys)
+        tic = time.perf_counter()
+        batch = bf(obj, thetas, keys)
+        wall = time.perf_counter() - tic
+        lo, costs = batch.outputs
+        costs = np.where(np.asarray(batch.failed), np.inf, np.asarray(costs))
+        b = int(np.argmin(costs))
+        fevs = np.asarray(lo.num_fn_evals).sum() + args.hybrid_chains * (args.hybrid_iter + 1)
+        out["hybrid"] = _summary(
+            problem, lo.theta[b], fevs, np.asarray(lo.num_jac_evals).sum(), wall, truth, noisy
+        )
+    best_cost = min(v["cost"] for k, v in out.items() if not k.startswith("_"))
+    for k, v in out.items():
+        if not k.startswith("_"):
+            v["global"] = bool(v["cost"] <= best_cost * (1 + 1e-6) + 1e-9)
+    return out
+
+
+def loop_vs_batch(obj, problem, thetas, batch_wall, args):
+    """The same LM fits from the same starts, one after the other (each jitted, compiled once)."""
+    starts = np.asarray(jax.vmap(problem.transform.to_physical)(thetas))
+    fit(obj, start=starts[0], max_steps=args.max_steps, throw=False)  # compile
+    tic = time.perf_counter()
+    for s in starts:
+        fit(obj, start=s, max_steps=args.max_steps, throw=False)
+    loop = time.perf_counter() - tic
+    return dict(n_starts=len(starts), batched_s=batch_wall, loop_s=loop, speedup=loop / batch_wall)
+
+
+def aggregate(trials):
+    rows = {}
+    for out in trials:
+        for m, v in out.items():
+            if m.startswith("_"):
+                continue
+            rows.setdefault(m, []).append(v)
+    agg = {}
+    for m, vs in rows.items():
+        agg[m] = dict(
+            trials=len(vs),
+            success_rate=float(np.mean([v["success"] for v in vs])),
+            global_rate=float(np.mean([v["global"] for v in vs])),
+            forward_solves=float(np.median([v["forward_solves"] for v in vs])),
+            wall_time=float(np.median([v["wall_time"] for v in vs])),
+            max_rel_error=float(np.median([v["max_rel_error"] for v in vs])),
+        )
+    return agg
+
+
+def markdown(results, loops, settings):
+    lines = [
+        "# Identification benchmark",
+        "",
+        "Settings: " + ", ".join(f"{k}={v}" for k, v in settings.items()),
+        "",
+        "Success: all parameters within 1 % (noise-free) / truth inside every 95 % interval (2 % "
+        "noise). Global: final cost equals the lowest cost any method reached in the trial. "
+        "Forward solves and wall time: medians per trial (wall time after compilation).",
+        "",
+        "| scenario | n | noise | method | trials | success | global | forward solves | wall [s] | median max rel. error |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for (sc, n, noise), agg in results.items():
+        for m in METHODS:
+            if m in agg:
+                a = agg[m]
+                lines.append(
+                    f"| {sc} | {n} | {noise} | {m} | {a['trials']} | {a['success_rate']:.0%} | "
+                    f"{a['global_rate']:.0%} | {a['forward_solves']:.0f} | {a['wall_time']:.2f} | "
+                    f"{a['max_rel_error']:.1e} |"
+                )
+    lines += [
+        "",
+        "Forward solves of simulated annealing relative to multistart LM "
+        "(target: multistart LM needs at most 1/10):",
+        "",
+        "| scenario | noise | SA / multistart-LM forward solves | SA success | multistart-LM success |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for (sc, n, noise), agg in results.items():
+        if "annealing" in agg and "multistart-lm" in agg:
+            a, b = agg["annealing"], agg["multistart-lm"]
+            lines.append(
+                f"| {sc} | {noise} | {a['forward_solves'] / b['forward_solves']:.2f} | "
+                f"{a['success_rate']:.0%} | {b['success_rate']:.0%} |"
+            )
+    if loops:
+        lines += [
+            "",
+            "Multistart LM: one vmapped batch sharded over 2 CPU devices against a "
+            "Python loop of the same fits (target >= 1.7x):",
+            "",
+            "| scenario | noise | starts | batched [s] | loop [s] | speedup |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
+        for (sc, n, noise), lp in loops.items():
+            lines.append(
+                f"| {sc} | {noise} | {lp['n_starts']} | {lp['batched_s']:.2f} | "
+                f"{lp['loop_s']:.2f} | {lp['speedup']:.2f}x |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--trials", type=int, default=20)
+    p.add_argument(
+        "--duration", type=float, default=None, help="simulated time [s] (default: scenario's)"
+    )
+    p.add_argument("--scenarios", default="primary3,primary6,all10")
+    p.add_argument("--noise", default="0,2", help="noise levels in %% (0 and/or 2)")
+    p.add_argument("--methods", default=",".join(METHODS))
+    p.add_argument("--starts", type=int, default=32)
+    p.add_argument("--max-steps", type=int, default=100)
+    p.add_argument(
+        "--dfo-steps", type=int, default=400, help="steps of Nelder-Mead / pattern search"
+    )
+    p.add_argument("--sa-iter", type=int, default=2000)
+    p.add_argument("--hybrid-chains", type=int, default=4)
+    p.add_argument("--hybrid-iter", type=int, default=200)
+    p.add_argument("--rtol", type=float, default=1e-8)
+    p.add_argument("--no-loop", dest="loop", action="store_false")
+    p.add_argument("--name", default="identification")
+    args = p.parse_args(argv)
+    args.methods = tuple(m.strip() for m in args.methods.split(","))
+    settings = {k: v for k, v in vars(args).items() if k != "name"}
+    settings["devices"] = jax.device_count()
+    results, loops, raw = {}, {}, []
+    t_all = time.perf_counter()
+    for sc in args.scenarios.split(","):
+        cache = {}
+        for noise in (int(x) for x in args.noise.split(",")):
+            trials = []
+            for t in range(args.trials):
+                tic = time.perf_counter()
+                out = run_trial(sc, None, t, noise > 0, args, cache)
+                trials.append(out)
+                if "_loop" in out:
+                    loops[(sc, 0, f"{noise}%")] = out["_loop"]
+                raw.append(dict(scenario=sc, noise_percent=noise, trial=t, methods=out))
+                print(
+                    f"{sc} noise {noise}% trial {t}: {time.perf_counter() - tic:.1f} s; "
+                    + ", ".join(
+                        f"{m}: {'ok' if v['success'] else 'FAIL'}"
+                        for m, v in out.items()
+                        if not m.startswith("_")
+                    ),
+                    flush=True,
+                )
+            key = (sc, _n_params(sc), f"{noise}%")
+            results[key] = aggregate(trials)
+            if (sc, 0, f"{noise}%") in loops:
+                loops[key] = loops.pop((sc, 0, f"{noise}%"))
+            # written after every block, so a run cut short keeps what is finished
+            settings["total_wall_s"] = round(time.perf_counter() - t_all, 1)
+            md = markdown(results, loops, settings)
+            records = [
+                dict(scenario=k[0], n_params=k[1], noise=k[2], methods=v)
+                for k, v in results.items()
+            ]
+            write_outputs(
+                args.name,
+                records,
+                md,
+                extra=dict(
+                    settings=settings,
+                    trials=raw,
+                    loop_vs_batch=[dict(scenario=k[0], noise=k[2], **v) for k, v in loops.items()],
+                ),
+            )
+
+
+def _n_params(sc):
+    from bogie_jax.identify._scenarios import SCENARIOS
+
+    return len(SCENARIOS[sc].offsets)
+
+
+if __name__ == "__main__":
+    main()

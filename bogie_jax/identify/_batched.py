@@ -1,0 +1,85 @@
+"""Batched local fits that take the objective as a batch input, compiled once per structure.
+
+`fit_multistart` closes over its problem, so every new data set (a new trial, a new chunk's
+caller, a new command run) compiles the vmapped batch again: minutes for a simulation
+objective. Here the objective's arrays are an input of the compiled batch (broadcast to every
+member, or stacked: one data set per member), and the compiled runner is cached by the
+objective's static structure, the method, `max_steps`, the devices and an optional annealing
+schedule. Members and failure flags are as in `fit_multistart`.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ..batch import batch_runner
+from ._annealing import anneal_theta
+from ._local import as_method
+from ._problem import SUCCESS, as_problem
+
+
+_RUNNERS: dict = {}
+
+
+class BatchedFits:
+    """`fits(objective, thetas, keys=None, stacked=False) -> BatchResult` of `(LocalOutput, cost)`.
+
+    - `objective`: an `Objective` (broadcast to every member) or, with `stacked=True`, objectives
+      of one structure stacked along a leading member axis (`stack_objectives`).
+    - `thetas` (N, n): starts in unconstrained coordinates; `keys` (N, 2): annealing keys
+      (only with a `schedule`: a hybrid member anneals from its start, then fits).
+    """
+
+    def __init__(self, objective, method="lm", max_steps=100, *, schedule=None, devices=None):
+        self.static = eqx.partition(objective, eqx.is_array)[1]
+        self.method = as_method(method)
+        method_ = self.method
+        static = self.static
+
+        def member(inputs):
+            theta0, key, dynamic = inputs
+            problem = as_problem(eqx.combine(dynamic, static))
+            if schedule is not None:
+                theta0, _, _, _ = anneal_theta(problem, theta0, key, schedule)
+            out = method_.solve(problem, theta0, max_steps)
+            return out, problem.cost(out.theta)
+
+        self.runner = batch_runner(
+            member, devices=devices, failure_fn=lambda out: out[0].result != SUCCESS
+        )
+
+    def __call__(self, objective, thetas, keys=None, *, stacked=False):
+        n = thetas.shape[0]
+        dynamic = eqx.partition(objective, eqx.is_array)[0]
+        if not stacked:
+            dynamic = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), dynamic)
+        if keys is None:
+            keys = jnp.zeros((n, 2), jnp.uint32)
+        return jax.block_until_ready(self.runner((thetas, keys, dynamic)))
+
+
+def batched_fits(objective, method="lm", max_steps=100, *, schedule=None, devices=None):
+    """A cached `BatchedFits` for `objective`'s structure (compiled once per process)."""
+    static = eqx.partition(objective, eqx.is_array)[1]
+    leaves, treedef = jax.tree.flatten(static)
+    devs = tuple(jax.devices() if devices is None else devices)
+    key = (
+        treedef,
+        tuple(map(repr, leaves)),
+        repr(as_method(method)),
+        max_steps,
+        repr(schedule),
+        devs,
+    )
+    if key not in _RUNNERS:
+        _RUNNERS[key] = BatchedFits(
+            objective, method, max_steps, schedule=schedule, devices=devices
+        )
+    return _RUNNERS[key]
+
+
+def stack_objectives(objectives):
+    """Objectives of one structure (e.g. one scenario with different noise) stacked along a
+    leading axis, for `BatchedFits(..., stacked=True)`."""
+    dyn = [eqx.partition(o, eqx.is_array)[0] for o in objectives]
+    return jax.tree.map(lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]), *dyn)

@@ -1,0 +1,100 @@
+"""`bogie-jax sensitivity` in-process, with tiny settings (argparse + `add_parser`)."""
+
+import argparse
+import json
+
+import pytest
+
+from bogie_jax._cli_sensitivity import add_parser, run
+from bogie_jax.cli import UsageError
+
+
+def parse(argv):
+    parser = argparse.ArgumentParser(prog="bogie-jax")
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    return parser.parse_args(["sensitivity", *argv])
+
+
+TINY = ["--speed", "50", "--duration", "0.2", "--sample-rate", "50", "--sensors", "frame-acc"]
+
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (
+            ["--method", "sobol", "--params", "primary.kz,primary.kq"],
+            "unknown parameter 'primary.kq'",
+        ),
+        (["--method", "sobol", "--params", "primary.kz", "--n", "100"], "power of two"),
+        (
+            ["--method", "screening", "--params", "primary.kz", "--bounds", "primary.kz=2e6:1e6"],
+            "lower < upper",
+        ),
+        (
+            ["--method", "screening", "--params", "primary.kz", "--bounds", "primary.ky=1e6:2e6"],
+            "not in `--params`",
+        ),
+        (["--method", "fim", "--params", "primary.kz", "--sensors", "nope"], "--sensors"),
+        (["--method", "profile", "--params", "primary.kz", "--grid", "2"], "--grid"),
+    ],
+)
+def test_bad_input_is_a_usage_error_before_evaluation(argv, match, tmp_path, monkeypatch):
+    import bogie_jax.cost
+
+    def fail(*a, **k):
+        pytest.fail("evaluated although the input was invalid")
+
+    monkeypatch.setattr(bogie_jax.cost, "synthetic_objective", fail)
+    with pytest.raises(UsageError, match=match) as e:
+        run(parse([*argv, "--out", str(tmp_path)]))
+    assert "\n" not in str(e.value)
+    assert not (tmp_path / "results.json").exists()
+
+
+def test_sobol_and_fim_write_results_and_pngs(tmp_path, capsys):
+    out = tmp_path / "sobol"
+    assert (
+        run(
+            parse(
+                [
+                    "--method",
+                    "sobol",
+                    "--params",
+                    "primary.kz,yaw_dampers.c",
+                    "--n",
+                    "4",
+                    "--out",
+                    str(out),
+                    *TINY,
+                ]
+            )
+        )
+        == 0
+    )
+    res = json.loads((out / "results.json").read_text())
+    assert res["names"] == ["primary.kz", "yaw_dampers.c"]
+    assert len(res["sobol"]["total"]) == 2 and res["sobol"]["n_evaluations"] == 16
+    assert (out / "sobol.png").stat().st_size > 0
+    assert "[1/3]" in capsys.readouterr().out
+
+    out = tmp_path / "fim"
+    assert (
+        run(
+            parse(
+                [
+                    "--method",
+                    "fim",
+                    "--params",
+                    "primary.kz,yaw_dampers.c",
+                    "--out",
+                    str(out),
+                    *TINY,
+                ]
+            )
+        )
+        == 0
+    )
+    res = json.loads((out / "results.json").read_text())
+    assert len(res["fim"]["eigenvalues"]) == 2
+    assert all(isinstance(v, float) for v in res["fim"]["eigenvalues"])
+    assert (out / "fim_eigenvalues.png").stat().st_size > 0

@@ -1,0 +1,238 @@
+"""Identification on the real objective (issue 4): multistart recovery, intervals under noise,
+errors through the entry points, sharding, and the `identify` command.
+
+One short run (`primary3` scenario: 0.25 s at 50 m/s, 100 Hz, all 13 default channels) with the
+true primary.kz, primary.cz and yaw_dampers.c offset +15 %, -10 %, +10 % from nominal, searched
+inside the +-50 % tolerance band. Data and fits share the solver (Tsit5, PID rtol 1e-8), so the
+noise-free minimum sits exactly at the truth. The residual Jacobian is taken in forward mode.
+Compiled objects are shared: the problem is a module fixture; one vmapped LM batch (the objective
+an input of the compiled program, `bogie_jax.identify._batched`) serves the noise-free multistart,
+the noisy trials (one data set per member) and both command runs; one compiled `fit` serves the
+one-device check. Those two compilations dominate: the file took 17 min on the shared 2-core CPU
+at load 7-8 (about 12 min for the batch, 3 min for `fit`); the persistent compilation cache does
+not keep them (the solves contain host callbacks). Marked `slow`.
+"""
+
+import json
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.random as jr
+import numpy as np
+import pytest
+
+from bogie_jax import _cli_identify
+from bogie_jax.cli import UsageError
+from bogie_jax.identify import as_problem, fit, fit_multistart
+from bogie_jax.identify._batched import batched_fits, stack_objectives
+from bogie_jax.identify._local import statistics
+from bogie_jax.identify._scenarios import relative_errors, scenario_problem
+
+
+DURATION, RATE, MAX_STEPS, N_STARTS = 0.25, 100.0, 100, 4
+_STATS = eqx.filter_jit(statistics)
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return scenario_problem("primary3", duration=DURATION, sample_rate=RATE)
+
+
+@pytest.fixture(scope="module")
+def multistart4(clean):
+    """Noise-free multistart LM, 4 starts sharded over the 4 host devices (the command's path:
+    `run_chunked` through `batch_runner`, the objective an input of the compiled batch)."""
+    result, interrupted = _cli_identify.run_chunked(
+        clean.objective,
+        key=jr.PRNGKey(0),
+        n_starts=N_STARTS,
+        chunk=N_STARTS,
+        max_steps=MAX_STEPS,
+    )
+    assert not interrupted
+    return result
+
+
+@pytest.mark.slow
+def test_noise_free_multistart_recovers_truth(clean, multistart4):
+    assert jax.device_count() == 4
+    res = multistart4
+    best = res.best
+    assert best is not None and best.success
+    np.testing.assert_array_less(relative_errors(best.estimates, clean.truth), 1e-5)
+    assert float(best.cost) < 1e-6  # J(truth) = 0; the LM stops within rtol 1e-10 of it
+    assert not np.any(np.asarray(best.on_bound))
+    assert res.clusters[0].count >= 1
+    assert len(res.records()) == N_STARTS
+    # estimates never leave the tolerance band
+    lo, hi = (
+        np.asarray(clean.objective.selection.lower),
+        np.asarray(clean.objective.selection.upper),
+    )
+    assert np.all((res.ends >= lo) & (res.ends <= hi))
+
+
+# With unit-variance weights and the Gauss-Newton statistics, each parameter's 95 % interval
+# should cover the truth in ~95 % of trials (all three together in ~86 %); the seeds below were
+# run once and are kept fixed (documented share: at least 3 of these 4 trials cover every truth;
+# see benchmarks/results/identification.md for the share over more trials).
+NOISE_SEEDS = (11, 12, 13, 14)
+
+
+@pytest.mark.slow
+def test_noisy_truth_inside_intervals(clean):
+    objectives, truths = [], []
+    for seed in NOISE_SEEDS:
+        noisy = scenario_problem(
+            "primary3", duration=DURATION, sample_rate=RATE, key=jr.PRNGKey(seed)
+        )
+        objectives.append(noisy.objective)
+        truths.append(noisy.truth)
+    # one batch, one noisy data set per member (the compiled batch of the multistart test),
+    # every fit from the nominal values (theta = 0)
+    fits = batched_fits(clean.objective, "lm", MAX_STEPS)
+    batch = fits(stack_objectives(objectives), jnp.zeros((len(objectives), 3)), stacked=True)
+    assert not np.any(np.asarray(batch.failed))
+    covered = []
+    for k, (obj, truth) in enumerate(zip(objectives, truths)):
+        stats = _STATS(as_problem(obj), batch.outputs[0].theta[k], 1e-6)
+        ci = np.asarray(stats["ci95"])
+        assert np.all(ci[:, 0] < ci[:, 1])
+        covered.append(bool(np.all((ci[:, 0] <= truth) & (truth <= ci[:, 1]))))
+        # noise at the sensors' noise level: estimates close to (not at) the truth
+        assert np.all(relative_errors(stats["estimates"], truth) < 0.2)
+        assert 0.5 < float(stats["noise_variance"]) < 2.0
+    assert sum(covered) >= len(NOISE_SEEDS) - 1, covered
+
+
+def test_errors_through_entry_points(clean):
+    with pytest.raises(ValueError, match="unknown parameter 'primary.kzz'"):
+        scenario_problem("primary3", ["primary.kzz"], duration=DURATION, sample_rate=RATE)
+    with pytest.raises(ValueError, match="empty"):
+        scenario_problem("primary3", [], duration=DURATION, sample_rate=RATE)
+    with pytest.raises(ValueError, match="unknown scenario"):
+        scenario_problem("nope")
+    outside = clean.truth * np.array([3.0, 1.0, 1.0])
+    with pytest.raises(ValueError, match="strictly inside the bounds: primary.kz"):
+        fit(clean.objective, start=outside)
+    with pytest.raises(ValueError, match="strictly inside the bounds"):
+        fit_multistart(clean.objective, key=jr.PRNGKey(0), starts=outside[None])
+
+
+def _parse(argv):
+    from bogie_jax.cli import _Parser
+
+    parser = _Parser(prog="bogie-jax")
+    _cli_identify.add_parser(parser.add_subparsers(dest="command", parser_class=_Parser))
+    return parser.parse_args(["identify", *argv])
+
+
+def _args(tmp_path, *extra):
+    return _parse(
+        [
+            "--scenario",
+            "primary3",
+            "--duration",
+            str(DURATION),
+            "--noise",
+            "0",
+            "--starts",
+            str(N_STARTS),
+            "--chunk",
+            str(N_STARTS),
+            "--max-steps",
+            str(MAX_STEPS),
+            "--out",
+            str(tmp_path / "out"),
+            *extra,
+        ]
+    )
+
+
+@pytest.mark.slow
+def test_cli_identify(tmp_path, capsys, clean):
+    args = _args(tmp_path)
+    assert _cli_identify.run(args) == 0
+    out = capsys.readouterr().out
+    assert "starts 4/4 done" in out and "primary.kz" in out and "95% interval" in out
+    res = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert [p["name"] for p in res["parameters"]] == ["primary.kz", "primary.cz", "yaw_dampers.c"]
+    for p, true in zip(res["parameters"], clean.truth):
+        assert p["true"] == pytest.approx(true, rel=1e-12)
+        assert p["estimate"] == pytest.approx(true, rel=1e-5)
+        assert set(p) >= {"name", "unit", "true", "nominal", "estimate", "ci95"}
+    assert len(res["starts"]) == N_STARTS and not res["interrupted"]
+    lines = (tmp_path / "out" / "starts.jsonl").read_text().splitlines()
+    assert [json.loads(x)["index"] for x in lines] == list(range(N_STARTS))
+    for name in ("waterfall.png", "estimates.png"):
+        assert (tmp_path / "out" / name).stat().st_size > 1000
+
+
+@pytest.mark.slow
+def test_cli_interrupt_keeps_finished_starts(tmp_path, monkeypatch, capsys):
+    calls = []
+
+    def interrupt(done, total, part, elapsed):
+        calls.append(done)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(_cli_identify, "_progress", interrupt)
+    # interrupted after the first of two chunks
+    args = _args(tmp_path, "--no-plots")
+    args.starts = 2 * N_STARTS  # two chunks of N_STARTS (the compiled batch of the test above)
+    assert _cli_identify.run(args) == 130
+    res = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert res["interrupted"] and res["n_finished"] == N_STARTS and len(res["starts"]) == N_STARTS
+    assert len((tmp_path / "out" / "starts.jsonl").read_text().splitlines()) == N_STARTS
+    assert calls == [N_STARTS]
+
+
+def test_cli_list_params(capsys):
+    assert _cli_identify.run(_parse(["--list-params"])) == 0
+    out = capsys.readouterr().out
+    assert "yaw_dampers.c" in out and "N s/m" in out and "nominal" in out
+
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["--starts", "0"], "--starts"),
+        (["--method", "newton"], "unknown `--method`"),
+        (["--scenario", "nope"], "unknown `--scenario`"),
+        (["--design", "grid"], "unknown `--design`"),
+        (["--noise", "-1"], "--noise"),
+        (["--band", "1.5"], "--band"),
+        (["--chunk", "0"], "--chunk"),
+        (["--data", "/nonexistent.npz"], "does not exist"),
+        (["--params", ","], "empty"),
+        (["--params", "primary.kzz", "--duration", "0.1"], "unknown parameter 'primary.kzz'"),
+    ],
+)
+def test_cli_bad_values(tmp_path, argv, match):
+    args = _parse([*argv, "--out", str(tmp_path / "o")])
+    with pytest.raises(UsageError, match=match):
+        _cli_identify.run(args)
+
+
+def test_cli_bad_data_file(tmp_path):
+    bad = tmp_path / "run.txt"
+    bad.write_text("t,a\n0,1\n")
+    with pytest.raises(UsageError, match="expected a .npz or .csv file"):
+        _cli_identify.run(_parse(["--data", str(bad), "--out", str(tmp_path / "o")]))
+    with pytest.raises(SystemExit):  # --data and --scenario are exclusive (argparse, exit 2)
+        _parse(["--data", str(bad), "--scenario", "default"])
+
+
+@pytest.mark.slow
+def test_sharded_multistart_equals_one_device(clean, multistart4):
+    """The batch sharded over 4 devices gives the fits run one by one on one device (`fit`,
+    which compiles one unbatched program: a second vmapped compilation on one device would
+    cost minutes on a small CPU)."""
+    for start, end, cost in zip(multistart4.starts, multistart4.ends, multistart4.costs):
+        single = fit(clean.objective, start=start, max_steps=MAX_STEPS, throw=False)
+        # same solver, same start; only vmap/sharding differs, which may change rounding
+        # (a start that ends in a local minimum on a bound sits in a flat valley: ~1e-6 there)
+        np.testing.assert_allclose(single.estimates, end, rtol=1e-5)
+        # (J ~ 1e-7 where the noise-free fits stop: the stopping point depends on rounding)
+        np.testing.assert_allclose(float(single.cost), cost, rtol=1e-6, atol=1e-6)
