@@ -290,17 +290,24 @@ def scalar_product_test(
 
 
 # ------------------------------------------------------------------------------------ harness
-def _median_time(fn, repeats: int) -> tuple[float, float]:
-    """(time of the first call, median of `repeats` further calls) [s]."""
+def _timed(fn) -> float:
     t = time.perf_counter()
     jax.block_until_ready(fn())
-    first = time.perf_counter() - t
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(fn())
-        times.append(time.perf_counter() - t)
-    return first, statistics.median(times)
+    return time.perf_counter() - t
+
+
+def _median_time(fn, repeats: int) -> tuple[float, float]:
+    """(time of the first call, median of `repeats` further calls) [s]."""
+    first = _timed(fn)
+    return first, statistics.median(_timed(fn) for _ in range(repeats))
+
+
+def _paired_times(fn, solve, repeats: int) -> tuple[float, float, float]:
+    """(first call, median time, median of time / adjacent forward-solve time): each timed call
+    is paired with a solve timed right before it, so load drift on a shared machine cancels."""
+    first = _timed(fn)
+    pairs = [(_timed(solve), _timed(fn)) for _ in range(repeats)]
+    return first, statistics.median(g for _, g in pairs), statistics.median(g / s for s, g in pairs)
 
 
 def _peak_bytes(jitted, *args) -> int:
@@ -340,15 +347,17 @@ def gradient_report(
     """Time, accuracy and memory of each gradient method on `objective` at `theta`.
 
     One record per method: `method`, `mode`, `n_params`, `time_s` (median of `repeats` calls
-    after a first, compiling call), `time_ratio` (over one forward solve, the compiled residuals,
-    timed the same way), `compile_s` (first call minus median), `rel_error`
+    after a first, compiling call), `time_ratio` (median over the calls of the time over that of
+    one forward solve, the compiled residuals, timed right before each call), `compile_s` (first
+    call minus median), `rel_error`
     (|g - g_ref| / |g_ref|, 2-norms, against `reference` or `reference_gradient`),
     `peak_memory_mb` (XLA's compiled memory analysis of the method's main compiled function:
     arguments + outputs + temporaries; finite differences: that of the residuals), `grad`.
     """
     theta = jnp.asarray(theta, dtype=float)
     g_ref = np.asarray(reference_gradient(objective, theta) if reference is None else reference)
-    solve_first, solve_time = _median_time(lambda: _residuals(objective, theta), repeats)
+    solve = lambda: _residuals(objective, theta)
+    solve_first, solve_time = _median_time(solve, repeats)
     records = [
         dict(
             method="forward-solve",
@@ -364,15 +373,16 @@ def gradient_report(
     ]
     for method in methods:
         name, adjoint, mode = resolve_method(method, None, objective.residual_model.max_steps)
-        first, t = _median_time(lambda: gradient(objective, theta, method=method).grad, repeats)
-        g = np.asarray(gradient(objective, theta, method=method).grad)
+        call = lambda: gradient(objective, theta, method=method).grad
+        first, t, ratio = _paired_times(call, solve, repeats)
+        g = np.asarray(call())
         records.append(
             dict(
                 method=name,
                 mode=mode,
                 n_params=int(theta.size),
                 time_s=t,
-                time_ratio=t / solve_time,
+                time_ratio=ratio,
                 compile_s=max(first - t, 0.0),
                 rel_error=float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref)),
                 peak_memory_mb=_core_memory(objective, theta, adjoint, mode) / 2**20,

@@ -51,6 +51,7 @@ def test_bad_input_is_a_usage_error_before_evaluation(argv, match, tmp_path, mon
     assert not (tmp_path / "results.json").exists()
 
 
+@pytest.mark.heavy
 def test_sobol_and_fim_write_results_and_pngs(tmp_path, capsys):
     out = tmp_path / "sobol"
     assert (

@@ -55,6 +55,7 @@ def multistart4(clean):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_noise_free_multistart_recovers_truth(clean, multistart4):
     assert jax.device_count() == 4
     res = multistart4
@@ -81,6 +82,7 @@ NOISE_SEEDS = (11, 12, 13, 14)
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_noisy_truth_inside_intervals(clean):
     objectives, truths = [], []
     for seed in NOISE_SEEDS:
@@ -151,6 +153,7 @@ def _args(tmp_path, *extra):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_cli_identify(tmp_path, capsys, clean):
     args = _args(tmp_path)
     assert _cli_identify.run(args) == 0
@@ -170,6 +173,7 @@ def test_cli_identify(tmp_path, capsys, clean):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_cli_interrupt_keeps_finished_starts(tmp_path, monkeypatch, capsys):
     calls = []
 
@@ -225,6 +229,7 @@ def test_cli_bad_data_file(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_sharded_multistart_equals_one_device(clean, multistart4):
     """The batch sharded over 4 devices gives the fits run one by one on one device (`fit`,
     which compiles one unbatched program: a second vmapped compilation on one device would
