@@ -193,7 +193,7 @@ def _table(rows) -> str:
 def _data_problem(args, names):
     import diffrax as dfx
 
-    from ._tracks import track_from_name
+    from ._tracks import run_track
     from .cost import make_objective
     from .identify._scenarios import SCENARIOS, tolerance_bounds
     from .io import load_measurement
@@ -210,9 +210,8 @@ def _data_problem(args, names):
             if item.startswith("seed="):
                 seed = int(item[5:])
     duration = float(measurement.times[-1])
-    margin = 2 * float(params.geometry.semi_wheelbase) + 50.0
-    track = track_from_name(
-        track_name, seed=seed, length=float(measurement.speed) * duration + margin
+    track = run_track(
+        track_name, params, seed=seed, speed=float(measurement.speed), duration=duration
     )
     controller = dfx.PIDController(rtol=args.rtol, atol=1e-3 * args.rtol)
     objective = make_objective(

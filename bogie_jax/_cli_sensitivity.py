@@ -161,7 +161,7 @@ def run(args) -> int:
 
     matplotlib.use("Agg")
     from . import _plot_sensitivity as plots
-    from ._tracks import track_from_name
+    from ._tracks import run_track
     from .cli import UsageError
     from .cost import synthetic_objective
     from .sensitivity import sensor_layouts
@@ -170,10 +170,9 @@ def run(args) -> int:
     stages = {"screening": 3, "sobol": 2, "fim": 2, "profile": 3}[args.method]
     progress = _Progress(stages + 1)
     sensors = sensor_layouts(params)[args.sensors]
-    margin = 2 * float(params.geometry.semi_wheelbase) + 50.0
     try:
-        track = track_from_name(
-            args.track, seed=args.seed, length=args.speed * args.duration + margin
+        track = run_track(
+            args.track, params, seed=args.seed, speed=args.speed, duration=args.duration
         )
     except ValueError as e:
         raise UsageError(str(e)) from None

@@ -34,3 +34,10 @@ def track_from_name(name: str, *, seed: int, length: float):
         return load_track_csv(name)
     psd = spectrum_from_name(name)
     return synthesise_track(psd, key=jr.PRNGKey(seed), length=length)
+
+
+def run_track(name: str, params, *, seed: int, speed: float, duration: float):
+    """`track_from_name` long enough for a run of `duration` [s] at `speed` [m/s]: the distance
+    travelled plus the wheelbase (the rear wheelset runs `2 a` behind) and a 50 m margin."""
+    margin = 2 * float(params.geometry.semi_wheelbase) + 50.0
+    return track_from_name(name, seed=seed, length=speed * duration + margin)

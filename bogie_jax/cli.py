@@ -94,7 +94,7 @@ def _simulate(args) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    from ._tracks import track_from_name
+    from ._tracks import run_track
     from .io import save_trajectory
     from .params import PARAMETER_SETS
     from .plot import plot_simulation
@@ -105,10 +105,11 @@ def _simulate(args) -> int:
     if args.plot is not None and not args.plot.lower().endswith(".png"):
         raise UsageError(f"`--plot` must end in .png, got {args.plot!r}")
     params = PARAMETER_SETS[args.params]()
-    margin = 2 * float(params.geometry.semi_wheelbase) + 50.0
     try:
         check_simulation_inputs(args.speed, args.duration, args.sample_rate)
-        track = track_from_name(args.track, seed=args.seed, length=args.speed * args.duration + margin)
+        track = run_track(
+            args.track, params, seed=args.seed, speed=args.speed, duration=args.duration
+        )
         trajectory = simulate(
             params, track, speed=args.speed, duration=args.duration, sample_rate=args.sample_rate
         )
@@ -174,7 +175,7 @@ def _gradcheck(args) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    from ._tracks import track_from_name
+    from ._tracks import run_track
     from .cost import select_parameters, synthetic_objective
     from .gradients import METHODS, gradient_report, report_table
     from .params import PARAMETER_SETS, parameter_names
@@ -195,11 +196,11 @@ def _gradcheck(args) -> int:
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise UsageError(f"unknown `--methods` {', '.join(unknown)}; valid: {', '.join(METHODS)}")
-    margin = 2 * float(params.geometry.semi_wheelbase) + 50.0
     try:
         select_parameters(params, names)  # names checked before anything is compiled
-        length = args.speed * args.duration + margin
-        track = track_from_name(args.track, seed=args.seed, length=length)
+        track = run_track(
+            args.track, params, seed=args.seed, speed=args.speed, duration=args.duration
+        )
         objective, theta = synthetic_objective(
             params, track, names, speed=args.speed, duration=args.duration,
             sample_rate=args.sample_rate, key=jr.PRNGKey(args.seed + 1), offset=args.offset,

@@ -37,11 +37,11 @@ from .cost._objective import traced_tolerances
 
 
 class _Method(NamedTuple):
-    adjoint: Callable[[int], dfx.AbstractAdjoint]  # max_steps -> adjoint
+    adjoint: Callable[[int, object], dfx.AbstractAdjoint]  # (max_steps, controller) -> adjoint
     modes: tuple[str, ...]  # supported AD modes, the default first
 
 
-def full_checkpoints(max_steps: int) -> dfx.RecursiveCheckpointAdjoint:
+def full_checkpoints(max_steps: int, controller=None) -> dfx.RecursiveCheckpointAdjoint:
     """`RecursiveCheckpointAdjoint` with one checkpoint per step (`checkpoints = max_steps`).
 
     With fewer checkpoints the backward pass recomputes runs of steps, and in diffrax 0.7.2 that
@@ -49,14 +49,31 @@ def full_checkpoints(max_steps: int) -> dfx.RecursiveCheckpointAdjoint:
     forced oscillator; `tests/test_gradients.py` keeps the reproducer). One checkpoint per step
     avoids the recomputation, costs a few hundred bytes per step of memory and is faster.
     """
+    del controller
     return dfx.RecursiveCheckpointAdjoint(checkpoints=max_steps)
+
+
+def seminorm_backsolve(max_steps: int, controller=None) -> dfx.BacksolveAdjoint:
+    """`BacksolveAdjoint` whose backward solve controls the error of the state and its adjoint
+    only (`diffrax.adjoint_rms_seminorm`; Kidger, Chen & Lyons 2021, "Hey, that's not an ODE").
+
+    The parameter adjoints are integrals of the solution and need no step control; with the
+    full norm the backward pass resolved them (39 parameter leaves of very different scales) and
+    took about 440 forward solves' time (`benchmarks/gradients.py`). Tolerances are those of the
+    forward `controller` (a `PIDController`; other controllers are used as they are).
+    """
+    del max_steps
+    if isinstance(controller, dfx.PIDController):
+        controller = eqx.tree_at(lambda c: c.norm, controller, dfx.adjoint_rms_seminorm)
+        return dfx.BacksolveAdjoint(stepsize_controller=controller)
+    return dfx.BacksolveAdjoint()
 
 
 AD_METHODS = {
     "reverse": _Method(full_checkpoints, ("rev",)),
-    "backsolve": _Method(lambda _: dfx.BacksolveAdjoint(), ("rev",)),
-    "forward": _Method(lambda _: dfx.ForwardMode(), ("fwd",)),
-    "direct": _Method(lambda _: dfx.DirectAdjoint(), ("fwd", "rev")),
+    "backsolve": _Method(seminorm_backsolve, ("rev",)),
+    "forward": _Method(lambda *_: dfx.ForwardMode(), ("fwd",)),
+    "direct": _Method(lambda *_: dfx.DirectAdjoint(), ("fwd", "rev")),
 }
 FD_METHODS = {"fd-forward": 1 / 2, "fd-central": 1 / 3}  # method -> exponent of eps in h
 METHODS = (*AD_METHODS, *FD_METHODS)
@@ -81,10 +98,11 @@ class GradientResult(eqx.Module):
 
 
 def resolve_method(
-    method, mode: str | None = None, max_steps: int = 16_384
+    method, mode: str | None = None, max_steps: int = 16_384, controller=None
 ) -> tuple[str, dfx.AbstractAdjoint | None, str]:
     """`(name, adjoint, mode)` for a method name or a diffrax adjoint instance (`max_steps`
-    sizes the checkpoints of `"reverse"`).
+    sizes the checkpoints of `"reverse"`; `controller`, the forward solve's step-size
+    controller, sets the tolerances of the `"backsolve"` backward pass).
 
     **Raises:** `ValueError` for an unknown method, an unsupported adjoint, or a mode the method
     cannot do (e.g. forward mode through `RecursiveCheckpointAdjoint`).
@@ -102,7 +120,7 @@ def resolve_method(
             raise ValueError(f"`mode` applies to AD methods only, not to {method!r}")
         return method, None, "fd"
     elif method in AD_METHODS:
-        name, adjoint = method, AD_METHODS[method].adjoint(max_steps)
+        name, adjoint = method, AD_METHODS[method].adjoint(max_steps, controller)
     else:
         raise ValueError(f"unknown `method` {method!r}; valid: {', '.join(METHODS)}")
     modes = AD_METHODS[name].modes
@@ -116,6 +134,11 @@ def resolve_method(
             "forward mode, 'reverse', 'backsolve' or 'direct' for reverse mode)"
         )
     return name, adjoint, mode
+
+
+def _resolve_for(objective: Objective, method, mode):
+    model = objective.residual_model
+    return resolve_method(method, mode, model.max_steps, model.stepsize_controller)
 
 
 # ------------------------------------------------------------------------------ compiled cores
@@ -170,7 +193,7 @@ def gradient(
     **Raises:** `ValueError` for unknown or unsupported method/mode combinations, `TypeError`
     for finite differences under a JAX transformation.
     """
-    name, adjoint, mode = resolve_method(method, mode, objective.residual_model.max_steps)
+    name, adjoint, mode = _resolve_for(objective, method, mode)
     theta = jnp.asarray(theta, dtype=float)
     if mode == "fd":
         return _finite_differences(objective, theta, name, jacobian, rel_noise, typical_scale)
@@ -276,7 +299,7 @@ def scalar_product_test(
     and agrees only to the solver tolerance. `n_directions` defaults to n (so the forward pass
     shares its compilation with `gradient(..., method="forward")`).
     """
-    name, adjoint, mode = resolve_method(method, "rev", objective.residual_model.max_steps)
+    name, adjoint, mode = _resolve_for(objective, method, "rev")
     theta = jnp.asarray(theta, dtype=float)
     k = theta.size if n_directions is None else n_directions
     key_v, key_w = jr.split(key)
@@ -372,7 +395,7 @@ def gradient_report(
         )
     ]
     for method in methods:
-        name, adjoint, mode = resolve_method(method, None, objective.residual_model.max_steps)
+        name, adjoint, mode = _resolve_for(objective, method, None)
         call = lambda: gradient(objective, theta, method=method).grad
         first, t, ratio = _paired_times(call, solve, repeats)
         g = np.asarray(call())

@@ -101,6 +101,9 @@ def plot_gradient_cost(records, ax=None):
         ax.plot(ns, [2.0 * n for n in ns], "k:", lw=1, label=r"$\propto n$")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    if ns:  # label the measured n, not the log axis' decades
+        ax.set_xticks(ns, [str(n) for n in ns])
+        ax.xaxis.set_minor_formatter(plt.NullFormatter())
     ax.set_xlabel("number of parameters n")
     ax.set_ylabel("time per gradient / forward solve")
     ax.grid(True, which="both", alpha=0.3)

@@ -3,6 +3,7 @@
 import argparse
 import json
 
+import numpy as np
 import pytest
 
 from bogie_jax._cli_sensitivity import add_parser, run
@@ -99,3 +100,33 @@ def test_sobol_and_fim_write_results_and_pngs(tmp_path, capsys):
     assert len(res["fim"]["eigenvalues"]) == 2
     assert all(isinstance(v, float) for v in res["fim"]["eigenvalues"])
     assert (out / "fim_eigenvalues.png").stat().st_size > 0
+
+
+@pytest.mark.heavy
+def test_screening_and_profile_write_results_and_pngs(tmp_path, capsys):
+    names = ["primary.kz", "yaw_dampers.c"]
+    out = tmp_path / "screening"
+    argv = ["--method", "screening", "--params", ",".join(names), "--grid", "3"]
+    assert run(parse([*argv, "--out", str(out), *TINY])) == 0
+    res = json.loads((out / "results.json").read_text())
+    sweeps, grid = res["sweeps"], res["grid"]
+    assert sweeps["names"] == names and np.shape(sweeps["cost"]) == (2, 3)
+    assert np.shape(grid["cost"]) == (3, 3) and not np.any(grid["failed"])
+    # a sum of squares
+    assert np.all(np.asarray(sweeps["cost"]) >= 0) and np.all(np.asarray(grid["cost"]) >= 0)
+    for png in ("sweeps.png", "cost_surface.png"):
+        assert (out / png).stat().st_size > 1000
+    assert "[1/4]" in capsys.readouterr().out
+
+    out = tmp_path / "profile"
+    argv = ["--method", "profile", "--params", ",".join(names), "--grid", "3"]
+    assert run(parse([*argv, "--out", str(out), *TINY])) == 0
+    res = json.loads((out / "results.json").read_text())
+    prof = res["profile"]
+    assert np.shape(prof["values"]) == (2, 3) and np.shape(prof["interval"]) == (2, 2)
+    # noise-free: the profile's minimum is the nominal point, every other grid point costs more
+    nominal = np.asarray(res["nominal"])
+    for delta, (lo, hi), x0 in zip(prof["delta_cost"], prof["interval"], nominal):
+        assert np.all(np.asarray(delta, float) >= -1e-9)
+        assert float(lo) <= x0 <= float(hi)
+    assert (out / "profiles.png").stat().st_size > 1000

@@ -7,6 +7,7 @@ passes through zero creepage at t = 0 (and through zero crossings later in the r
 """
 
 import dataclasses
+import json
 
 import diffrax as dfx
 import jax
@@ -202,6 +203,17 @@ def test_method_table_and_adjoint_instances():
     assert resolve_method("direct", "fwd")[::2] == ("direct", "fwd")
 
 
+def test_backsolve_steps_its_backward_pass_on_the_state_adjoint_only():
+    pid = dfx.PIDController(rtol=1e-7, atol=1e-10)
+    _, adjoint, _ = resolve_method("backsolve", None, 100, pid)
+    backward = adjoint.kwargs["stepsize_controller"]
+    assert backward.norm is dfx.adjoint_rms_seminorm
+    assert (backward.rtol, backward.atol) == (pid.rtol, pid.atol)
+    # a fixed-step forward solve: the backward pass keeps the solve's own step rule
+    _, adjoint, _ = resolve_method("backsolve", None, 100, dfx.ConstantStepSize())
+    assert "stepsize_controller" not in adjoint.kwargs
+
+
 def test_finite_differences_need_a_concrete_theta(objective, theta0):
     with pytest.raises(TypeError, match="needs a concrete `theta`"):
         jax.jit(lambda th: gradient(objective, th, method="fd-central").grad)(theta0)
@@ -240,3 +252,20 @@ def test_gradcheck_cli_rejects_bad_input(argv, message, capsys, tmp_path, monkey
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+def test_gradcheck_cli_writes_records(tmp_path, capsys):
+    out = tmp_path / "g.json"
+    argv = ["gradcheck", "--params", "primary.kz,yaw_dampers.c", "--methods", "forward,fd-central",
+            "--duration", "0.1", "--sample-rate", "50", "--repeats", "1", "--json", str(out),
+            "--plot", str(tmp_path / "g.png")]
+    assert main(argv) == 0
+    records = json.loads(out.read_text())
+    assert [r["method"] for r in records] == ["forward-solve", "forward", "fd-central"]
+    for r in records:
+        assert r["n_params"] == 2 and r["time_ratio"] > 0 and np.isfinite(r["rel_error"])
+    # forward mode is the reference's own method at a looser tolerance; central differences
+    # of an adaptive solve at rtol 1e-6 are good to about rtol^(2/3)
+    assert records[1]["rel_error"] < 1e-4 and records[2]["rel_error"] < 1e-2
+    assert (tmp_path / "g.png").stat().st_size > 1000
+    assert "| forward |" in capsys.readouterr().out

@@ -132,7 +132,7 @@ def scenario_problem(
 
     **Raises:** `ValueError` for an unknown scenario or parameter name or an empty selection.
     """
-    from .._tracks import track_from_name
+    from .._tracks import run_track
     from ..measure import default_sensor_layout, synthetic_measurement
 
     sc = as_scenario(scenario)
@@ -150,8 +150,7 @@ def scenario_problem(
     select_parameters(nominal, names, bounds=bounds)  # names checked before anything is simulated
     truth_params = true_params(nominal, sc.offsets)
     if track is None:
-        margin = 2 * float(nominal.geometry.semi_wheelbase) + 50.0
-        track = track_from_name(sc.track, seed=sc.seed, length=sc.speed * sc.duration + margin)
+        track = run_track(sc.track, nominal, seed=sc.seed, speed=sc.speed, duration=sc.duration)
     sensors = default_sensor_layout(nominal)
     if sc.channels is not None:
         sensors = tuple(s for s in sensors if s.name in sc.channels)
