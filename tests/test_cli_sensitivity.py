@@ -52,7 +52,7 @@ def test_bad_input_is_a_usage_error_before_evaluation(argv, match, tmp_path, mon
     assert not (tmp_path / "results.json").exists()
 
 
-@pytest.mark.heavy
+@pytest.mark.slow
 def test_sobol_and_fim_write_results_and_pngs(tmp_path, capsys):
     out = tmp_path / "sobol"
     assert (
@@ -102,7 +102,7 @@ def test_sobol_and_fim_write_results_and_pngs(tmp_path, capsys):
     assert (out / "fim_eigenvalues.png").stat().st_size > 0
 
 
-@pytest.mark.heavy
+@pytest.mark.slow
 def test_screening_and_profile_write_results_and_pngs(tmp_path, capsys):
     names = ["primary.kz", "yaw_dampers.c"]
     out = tmp_path / "screening"

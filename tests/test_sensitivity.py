@@ -281,6 +281,18 @@ def test_sensitivity_sobol_of_objective_equals_generic(getkey):
     np.testing.assert_allclose(ours.total, ref.total, atol=1e-9)
 
 
+def test_sensitivity_sobol_of_a_user_output(getkey):
+    # A scalar output other than the cost (e.g. an RMS acceleration from objective.predict):
+    # here x1 + 2 x3 of the physical values, whose first-order = total indices are analytic:
+    # Var = Var(x1) + 4 Var(x3) with x1 ~ U(-pi, pi), x3 ~ U(-pi, pi): S1 = 1/5, S3 = 4/5.
+    objective = IshigamiObjective(SELECTION, fail_if_called=True)  # the cost is never used
+    to_physical = SELECTION.to_physical
+    output = lambda theta: to_physical(theta)[0] + 2.0 * to_physical(theta)[2]
+    s = sensitivity_sobol(objective, n=2**12, key=getkey(), output=output, n_resamples=50)
+    np.testing.assert_allclose(s.first_order, [0.2, 0.0, 0.8], atol=0.02)
+    np.testing.assert_allclose(s.total, [0.2, 0.0, 0.8], atol=0.02)
+
+
 def test_sensitivity_screening_of_objective_equals_direct():
     objective = IshigamiObjective(SELECTION)
     grid = sensitivity_grid(objective, params=("secondary.cy", "primary.kx"), n_points=3)
