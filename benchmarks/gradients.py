@@ -18,8 +18,8 @@ import os
 
 
 # Runtime checks turn into NaNs instead of host callbacks, so every compiled program can be
-# stored in the in-process compilation cache below: the memory analysis (an ahead-of-time
-# compile of each method's program) then loads it instead of compiling it a second time.
+# stored in the persistent compilation cache (`--cache`): a rerun with the same directory loads
+# the programs instead of compiling them (its compile column then shows load times).
 os.environ.setdefault("EQX_ON_ERROR", "nan")
 
 import argparse  # noqa: E402
