@@ -86,9 +86,7 @@ def _wheelset_forces(model: BogieModel, q, qd, w, wd, wdd, axlebox_forces):
     x = kin.axle_positions(p)
 
     def one(pos, vel, w_, wd_, wdd_, x_, boxes):
-        gravity = -p.masses.wheelset.mass * GRAVITY * jax.grad(
-            lambda pos_: kin.height(pos_[0], pos_[1], w_, p, const)
-        )(pos)
+        gravity = -p.masses.wheelset.mass * GRAVITY * kin.height_gradient(pos[0], pos[1], w_, p, const)
         loads = normal_loads(boxes, wdd_, p, const)
         creep = contact_generalised_forces(pos, vel, w_, wd_, x_, loads, p, const, options, model.speed)
         total = gravity + creep

@@ -65,6 +65,13 @@ def height(y, psi, w, params: BogieParams, const: ModelConstants):
     )
 
 
+def height_gradient(y, psi, w, params: BogieParams, const: ModelConstants):
+    """Gradient of `height` with respect to (y, psi) [m/m, m/rad], shape (2,)."""
+    g = const.geometry
+    y_rel = relative_lateral(y, w, params.contact.wheel_radius)
+    return jnp.stack([g.vertical_lateral_coefficient * y_rel, -g.vertical_yaw_coefficient * psi])
+
+
 def roll(y, w, params: BogieParams, const: ModelConstants):
     """Wheelset roll angle [rad], paper eq. 3."""
     e0 = params.contact.contact_semi_distance

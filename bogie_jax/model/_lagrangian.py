@@ -1,4 +1,4 @@
-"""Kinetic energy (paper eq. 7) and Lagrange's inertia terms (paper eq. 6, 11), body by body.
+"""Lagrange's inertia terms (paper eq. 6, 7, 11), body by body, in closed form.
 
 For each body with coordinates p and kinetic energy T(p, p_dot, w, w_dot), Lagrange's equations
 give M(p, w) p_ddot + h = Q with
@@ -6,54 +6,99 @@ give M(p, w) p_ddot + h = Q with
 the time derivative following p, the track input w and w_dot. The bodies are inertially
 uncoupled (each T depends on its own coordinates only), so M is block diagonal: frame (6 x 6,
 translation m I and rotation E_b^T J E_b) and one 2 x 2 block per wheelset (y, yaw).
+
+Every velocity entering T is affine in p_dot, v = A(p, w) p_dot + b(p, w, w_dot), and
+T = 1/2 v^T D v with D the body's mass or principal inertia. Then M = A^T D A and
+    h = A^T D v_dot|_{p_ddot = 0} + (d/dt A - dv/dp)^T D v,
+where the bracket vanishes for velocities that are time derivatives of coordinates (y_dot, z_dot,
+phi_dot) and gives the gyroscopic terms for the body angular rates. The terms are written out
+rather than obtained by nesting automatic differentiation through T: the adjoint of the vector
+field is then several times cheaper. `tests/test_inertia_terms.py` checks them against
+Lagrange's equations applied to T by automatic differentiation.
 """
 
-import jax
 import jax.numpy as jnp
 
 from ..params import BogieParams
 from ._constants import ModelConstants
 from . import _kinematics as kin
-from ._smallmath import matvec
-
-
-def _lagrange_terms(energy, p, pd, extra, extra_rate):
-    """M and h of a body with kinetic energy `energy(p, pd, extra)`; `extra` (e.g. w, w_dot)
-    changes at `extra_rate`."""
-    momentum = jax.grad(energy, argnums=1)
-    mass = jax.jacfwd(momentum, argnums=1)(p, pd, extra)
-    _, rate = jax.jvp(momentum, (p, pd, extra), (pd, jnp.zeros_like(pd), extra_rate))
-    return mass, rate - jax.grad(energy, argnums=0)(p, pd, extra)
 
 
 def frame_rotation_terms(angles, rates, params: BogieParams):
-    """Rotational M (3 x 3) and h (3,) of the frame, angles (roll, pitch, yaw)."""
+    """Rotational M (3 x 3) [kg m^2] and h (3,) [N m] of the frame, angles (roll, pitch, yaw).
+
+    Body rates omega = E_b(angles) angles_dot (z-y-x Cardan sequence); M = E_b^T J E_b and
+    h = E_b^T (J E_b_dot angles_dot + omega x J omega) (Euler's equations projected on the
+    angles).
+    """
     inertia = jnp.stack([params.masses.frame.ixx, params.masses.frame.iyy, params.masses.frame.izz])
-
-    def energy(a, ad, _):
-        omega_body = matvec(kin.frame_body_rates_matrix(a), ad)
-        return 0.5 * jnp.sum(inertia * omega_body**2)
-
-    return _lagrange_terms(energy, angles, rates, (), ())
-
-
-def wheelset_energy(p, pd, track, params: BogieParams, const: ModelConstants, spin):
-    """Kinetic energy [J] of one wheelset; p = (y, yaw), track = (w, w_dot)."""
-    w, wd = track
-    m = params.masses.wheelset
-    inertia = jnp.stack([m.ixx, m.iyy, m.izz])
-    _, z_rate = jax.jvp(
-        lambda p_, w_: kin.height(p_[0], p_[1], w_, params, const), (p, w), (pd, wd)
+    e_b = kin.frame_body_rates_matrix(angles)
+    omega = jnp.sum(e_b * rates, axis=-1)
+    (s_roll, s_pitch), (c_roll, c_pitch) = jnp.sin(angles[:2]), jnp.cos(angles[:2])
+    roll_rate, pitch_rate, yaw_rate = rates[0], rates[1], rates[2]
+    omega_rate = jnp.stack(  # d/dt(E_b) angles_dot: omega_dot at zero angular accelerations
+        [
+            -c_pitch * pitch_rate * yaw_rate,
+            -s_roll * roll_rate * pitch_rate
+            + (c_roll * c_pitch * roll_rate - s_roll * s_pitch * pitch_rate) * yaw_rate,
+            -c_roll * roll_rate * pitch_rate
+            - (s_roll * c_pitch * roll_rate + c_roll * s_pitch * pitch_rate) * yaw_rate,
+        ]
     )
-    omega = kin.angular_velocity(p[0], p[1], pd[0], pd[1], w, wd, params, const, spin)
-    omega_body = matvec(kin.rotation(p[0], p[1], w, params, const).T, omega)
-    return 0.5 * m.mass * (pd[0] ** 2 + z_rate**2) + 0.5 * jnp.sum(inertia * omega_body**2)
+    torque = inertia * omega_rate + jnp.cross(omega, inertia * omega)
+    mass = jnp.sum(e_b[:, :, None] * inertia[:, None, None] * e_b[:, None, :], axis=0)
+    return mass, jnp.sum(e_b * torque[:, None], axis=0)
 
 
 def wheelset_terms(p, pd, w, wd, wdd, params: BogieParams, const: ModelConstants, spin):
-    """M (2 x 2) and h (2,) of one wheelset with coordinates p = (y, yaw)."""
+    """M (2 x 2) and h (2,) of one wheelset with coordinates p = (y, yaw).
 
-    def energy(p_, pd_, track):
-        return wheelset_energy(p_, pd_, track, params, const, spin)
-
-    return _lagrange_terms(energy, p, pd, (w, wd), (wd, wdd))
+    Kinetic energy (paper eq. 7 with the constraints eq. 2-3)
+        T = m/2 (y_dot^2 + z_dot^2) + 1/2 (Ix phi_dot^2 + Iy (spin + sin(phi) psi_dot)^2
+            + Iz (cos(phi) psi_dot)^2),
+    z = height(y, psi, w) (eq. 2), phi = roll(y, w) (eq. 3); `spin` = v / r0 [rad/s];
+    w, wd, wdd: the track input (alignment, level, cross level) and its time derivatives.
+    """
+    g = const.geometry
+    ws = params.masses.wheelset
+    r0 = params.contact.wheel_radius
+    c_lat, c_yaw = g.vertical_lateral_coefficient, g.vertical_yaw_coefficient
+    k_roll = g.roll_coefficient / params.contact.contact_semi_distance  # d phi / d y
+    y, psi = p[0], p[1]
+    y_dot, psi_dot = pd[0], pd[1]
+    y_rel = kin.relative_lateral(y, w, r0)
+    y_rel_dot = kin.relative_lateral(y_dot, wd, r0)
+    y_rel_ddot0 = -wdd[0] + r0 * wdd[2]  # d^2 y_rel / dt^2 at y_ddot = 0
+    # z (eq. 2): dz/dp and z_ddot at p_ddot = 0
+    dz = kin.height_gradient(y, psi, w, params, const)
+    z_ddot0 = (
+        wdd[1]
+        - r0 * (wd[2] ** 2 + w[2] * wdd[2])
+        + c_lat * (y_rel_dot**2 + y_rel * y_rel_ddot0)
+        - c_yaw * psi_dot**2
+    )
+    # roll (eq. 3): phi_dot and phi_ddot at p_ddot = 0
+    phi = kin.roll(y, w, params, const)
+    phi_dot = wd[2] + k_roll * y_rel_dot
+    phi_ddot0 = wdd[2] + k_roll * y_rel_ddot0
+    s, c = jnp.sin(phi), jnp.cos(phi)
+    omega_y = spin + s * psi_dot
+    omega_z = c * psi_dot
+    mass = jnp.stack(
+        [
+            jnp.stack([ws.mass * (1 + dz[0] ** 2) + ws.ixx * k_roll**2, ws.mass * dz[0] * dz[1]]),
+            jnp.stack([ws.mass * dz[0] * dz[1], ws.mass * dz[1] ** 2 + ws.iyy * s**2 + ws.izz * c**2]),
+        ]
+    )
+    h_y = (
+        ws.mass * dz[0] * z_ddot0
+        + ws.ixx * k_roll * phi_ddot0
+        - ws.iyy * c * k_roll * psi_dot * omega_y
+        + ws.izz * s * k_roll * psi_dot * omega_z
+    )
+    h_psi = (
+        ws.mass * dz[1] * z_ddot0
+        + ws.iyy * c * phi_dot * (omega_y + s * psi_dot)
+        - ws.izz * s * phi_dot * (omega_z + c * psi_dot)
+    )
+    return mass, jnp.stack([h_y, h_psi])

@@ -75,11 +75,15 @@ def scaled_creep_coefficients(normal_load, const: ModelConstants) -> CreepCoeffi
 def contact_generalised_forces(
     p, pd, w, wd, x, normal_load, params: BogieParams, const: ModelConstants, options: ModelOptions, speed
 ):
-    """Generalised forces on (y, yaw) [N, N m] of the creep forces, Q = (dv_c/dp_dot)^T F."""
+    """Generalised forces on (y, yaw) [N, N m] of the creep forces, Q = (dv_c/dp_dot)^T F.
+
+    v_c = v e_x + (0, y_dot, z_dot) + omega x r_c with z_dot = dz/dp . p_dot + ... (eq. 2) and
+    omega = psi_dot e_z + phi_dot Rz(psi) e_x + ... with phi_dot = (dphi/dy) y_dot + ... (eq. 3),
+    so, summed over the two contacts with moments M = sum r_c x F about the centre,
+        Q_y = sum F_y + dz/dy sum F_z + dphi/dy (Rz e_x) . M,   Q_yaw = dz/dpsi sum F_z + M_z.
+    """
     spin = speed / params.contact.wheel_radius
-    velocity, pullback = jax.vjp(
-        lambda pd_: contact_velocities(p, pd_, w, wd, x, params, const, speed), pd
-    )
+    velocity = contact_velocities(p, pd, w, wd, x, params, const, speed)
     omega = kin.angular_velocity(p[0], p[1], pd[0], pd[1], w, wd, params, const, spin)
     normals = kin.contact_normals(p[0], w, params, const)
     xi_x, xi_y, xi_spin = creepages(velocity, omega, normals, speed)
@@ -87,4 +91,14 @@ def contact_generalised_forces(
     if options.creep_saturation:
         fx, fy = shen_hedrick_elkins(fx, fy, normal_load, params.contact.friction)
     forces = fx[:, None] * E_X + fy[:, None] * jnp.cross(normals, E_X)
-    return pullback(forces)[0]
+    total = jnp.sum(forces, axis=0)
+    moment = jnp.sum(jnp.cross(kin.contact_offsets(p[0], p[1], w, params, const), forces), axis=0)
+    dz = kin.height_gradient(p[0], p[1], w, params, const)
+    roll_slope = const.geometry.roll_coefficient / params.contact.contact_semi_distance
+    roll_axis = jnp.stack([jnp.cos(p[1]), jnp.sin(p[1]), jnp.zeros_like(p[1])])  # Rz(psi) e_x
+    return jnp.stack(
+        [
+            total[1] + dz[0] * total[2] + roll_slope * jnp.sum(roll_axis * moment),
+            dz[1] * total[2] + moment[2],
+        ]
+    )
