@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import bogie_jax as bj
+from bogie_jax.contact import linear_creep_forces, shen_hedrick_elkins
 from bogie_jax.model import _kinematics as kin
 from bogie_jax.model._constants import model_constants
 from bogie_jax.model._lagrangian import frame_rotation_terms, wheelset_terms
-from bogie_jax.contact import linear_creep_forces, shen_hedrick_elkins
 from bogie_jax.model._wheel_rail import (
     contact_generalised_forces,
     contact_velocities,
@@ -42,7 +42,9 @@ def wheelset_energy(p, pd, track, params, const, spin):
     w, wd = track
     m = params.masses.wheelset
     inertia = jnp.stack([m.ixx, m.iyy, m.izz])
-    _, z_rate = jax.jvp(lambda p_, w_: kin.height(p_[0], p_[1], w_, params, const), (p, w), (pd, wd))
+    _, z_rate = jax.jvp(
+        lambda p_, w_: kin.height(p_[0], p_[1], w_, params, const), (p, w), (pd, wd)
+    )
     omega = kin.angular_velocity(p[0], p[1], pd[0], pd[1], w, wd, params, const, spin)
     omega_body = kin.rotation(p[0], p[1], w, params, const).T @ omega
     return 0.5 * m.mass * (pd[0] ** 2 + z_rate**2) + 0.5 * jnp.sum(inertia * omega_body**2)
@@ -61,9 +63,13 @@ def test_frame_rotation_terms_match_lagrange(params):
     for _ in range(5):
         angles, rates = jnp.asarray(rng.normal(0, 0.3, 3)), jnp.asarray(rng.normal(0, 2.0, 3))
         mass, h = frame_rotation_terms(angles, rates, params)
-        ref_m, ref_h = lagrange_terms(lambda a, ad, _: frame_energy(a, ad, inertia), angles, rates, (), ())
+        ref_m, ref_h = lagrange_terms(
+            lambda a, ad, _: frame_energy(a, ad, inertia), angles, rates, (), ()
+        )
         np.testing.assert_allclose(mass, ref_m, rtol=1e-12, atol=1e-12 * float(jnp.max(inertia)))
-        np.testing.assert_allclose(h, ref_h, rtol=1e-10, atol=1e-10 * float(jnp.max(jnp.abs(ref_h))))
+        np.testing.assert_allclose(
+            h, ref_h, rtol=1e-10, atol=1e-10 * float(jnp.max(jnp.abs(ref_h)))
+        )
 
 
 def test_wheelset_terms_match_lagrange(params):
@@ -72,12 +78,20 @@ def test_wheelset_terms_match_lagrange(params):
     rng = np.random.default_rng(1)
     for _ in range(5):
         p, pd = jnp.asarray(rng.normal(0, [4e-3, 5e-3])), jnp.asarray(rng.normal(0, [0.2, 0.3]))
-        w, wd, wdd = (jnp.asarray(rng.normal(0, s * np.array([1e-3, 1e-3, 1e-3]))) for s in (1, 50, 2500))
+        w, wd, wdd = (
+            jnp.asarray(rng.normal(0, s * np.array([1e-3, 1e-3, 1e-3]))) for s in (1, 50, 2500)
+        )
         mass, h = wheelset_terms(p, pd, w, wd, wdd, params, const, spin)
         ref_m, ref_h = lagrange_terms(
-            lambda p_, pd_, tr: wheelset_energy(p_, pd_, tr, params, const, spin), p, pd, (w, wd), (wd, wdd)
+            lambda p_, pd_, tr: wheelset_energy(p_, pd_, tr, params, const, spin),
+            p,
+            pd,
+            (w, wd),
+            (wd, wdd),
         )
-        np.testing.assert_allclose(mass, ref_m, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(ref_m))))
+        np.testing.assert_allclose(
+            mass, ref_m, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(ref_m)))
+        )
         np.testing.assert_allclose(h, ref_h, rtol=1e-9, atol=1e-10 * float(jnp.max(jnp.abs(ref_h))))
 
 

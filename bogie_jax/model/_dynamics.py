@@ -86,7 +86,8 @@ def _wheelset_forces(model: BogieModel, q, qd, w, wd, wdd, axlebox_forces):
     x = kin.axle_positions(p)
 
     def one(pos, vel, w_, wd_, wdd_, x_, boxes):
-        gravity = -p.masses.wheelset.mass * GRAVITY * kin.height_gradient(pos[0], pos[1], w_, p, const)
+        slope = kin.height_gradient(pos[0], pos[1], w_, p, const)
+        gravity = -p.masses.wheelset.mass * GRAVITY * slope
         loads = normal_loads(boxes, wdd_, p, const)
         creep = contact_generalised_forces(pos, vel, w_, wd_, x_, loads, p, const, options, model.speed)
         total = gravity + creep

@@ -13,15 +13,15 @@ T = 1/2 v^T D v with D the body's mass or principal inertia. Then M = A^T D A an
 where the bracket vanishes for velocities that are time derivatives of coordinates (y_dot, z_dot,
 phi_dot) and gives the gyroscopic terms for the body angular rates. The terms are written out
 rather than obtained by nesting automatic differentiation through T: the adjoint of the vector
-field is then several times cheaper. `tests/test_inertia_terms.py` checks them against
+field is then several times cheaper. `tests/test_closed_form_terms.py` checks them against
 Lagrange's equations applied to T by automatic differentiation.
 """
 
 import jax.numpy as jnp
 
 from ..params import BogieParams
-from ._constants import ModelConstants
 from . import _kinematics as kin
+from ._constants import ModelConstants
 
 
 def frame_rotation_terms(angles, rates, params: BogieParams):
@@ -87,7 +87,9 @@ def wheelset_terms(p, pd, w, wd, wdd, params: BogieParams, const: ModelConstants
     mass = jnp.stack(
         [
             jnp.stack([ws.mass * (1 + dz[0] ** 2) + ws.ixx * k_roll**2, ws.mass * dz[0] * dz[1]]),
-            jnp.stack([ws.mass * dz[0] * dz[1], ws.mass * dz[1] ** 2 + ws.iyy * s**2 + ws.izz * c**2]),
+            jnp.stack(
+                [ws.mass * dz[0] * dz[1], ws.mass * dz[1] ** 2 + ws.iyy * s**2 + ws.izz * c**2]
+            ),
         ]
     )
     h_y = (
