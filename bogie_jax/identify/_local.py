@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import optimistix as optx
 
+from ._householder import HouseholderQR
 from ._problem import SUCCESS, as_problem, param_names, start_theta, status_name
 
 
@@ -149,11 +150,15 @@ class PatternSearch(AbstractLocalMethod):
 
 
 def local_methods(rtol: float = 1e-10, atol: float = 1e-10) -> dict:
-    """The name -> method table used at the CLI/IO boundary."""
+    """The name -> method table used at the CLI/IO boundary.
+
+    The least-squares steps use `HouseholderQR` (no LAPACK call, see `_householder.py`: a
+    batched LAPACK QR can deadlock a multistart sharded over CPU devices)."""
+    qr = HouseholderQR()
     return {
-        "lm": LeastSquaresMethod(optx.LevenbergMarquardt(rtol, atol)),
-        "gauss-newton": LeastSquaresMethod(optx.GaussNewton(rtol, atol)),
-        "dogleg": LeastSquaresMethod(optx.Dogleg(rtol, atol)),
+        "lm": LeastSquaresMethod(optx.LevenbergMarquardt(rtol, atol, linear_solver=qr)),
+        "gauss-newton": LeastSquaresMethod(optx.GaussNewton(rtol, atol, linear_solver=qr)),
+        "dogleg": LeastSquaresMethod(optx.Dogleg(rtol, atol, linear_solver=qr)),
         "bfgs": MinimiserMethod(optx.BFGS(rtol, atol)),
         "nelder-mead": MinimiserMethod(optx.NelderMead(rtol, atol, adelta=0.05), restarts=2),
         "pattern": PatternSearch(),
