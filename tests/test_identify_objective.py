@@ -239,5 +239,6 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
         # same solver, same start; only vmap/sharding differs, which may change rounding
         # (a start that ends in a local minimum on a bound sits in a flat valley: ~1e-6 there)
         np.testing.assert_allclose(single.estimates, end, rtol=1e-5)
-        # (J ~ 1e-7 where the noise-free fits stop: the stopping point depends on rounding)
-        np.testing.assert_allclose(float(single.cost), cost, rtol=1e-6, atol=1e-6)
+        # (J ~ 1e-7 where the noise-free fits stop: the stopping point depends on rounding; at a
+        # minimum on a bound the cost is not stationary, so it moves with the estimate: 1e-5)
+        np.testing.assert_allclose(float(single.cost), cost, rtol=1e-5, atol=1e-6)
