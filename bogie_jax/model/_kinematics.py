@@ -72,11 +72,15 @@ def height_gradient(y, psi, w, params: BogieParams, const: ModelConstants):
     return jnp.stack([g.vertical_lateral_coefficient * y_rel, -g.vertical_yaw_coefficient * psi])
 
 
+def roll_slope(params: BogieParams, const: ModelConstants):
+    """d(roll)/dy [rad/m] of paper eq. 3."""
+    return const.geometry.roll_coefficient / params.contact.contact_semi_distance
+
+
 def roll(y, w, params: BogieParams, const: ModelConstants):
     """Wheelset roll angle [rad], paper eq. 3."""
-    e0 = params.contact.contact_semi_distance
     y_rel = relative_lateral(y, w, params.contact.wheel_radius)
-    return w[2] + const.geometry.roll_coefficient / e0 * y_rel
+    return w[2] + roll_slope(params, const) * y_rel
 
 
 def rotation(y, psi, w, params, const):

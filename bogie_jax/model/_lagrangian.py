@@ -63,7 +63,7 @@ def wheelset_terms(p, pd, w, wd, wdd, params: BogieParams, const: ModelConstants
     ws = params.masses.wheelset
     r0 = params.contact.wheel_radius
     c_lat, c_yaw = g.vertical_lateral_coefficient, g.vertical_yaw_coefficient
-    k_roll = g.roll_coefficient / params.contact.contact_semi_distance  # d phi / d y
+    k_roll = kin.roll_slope(params, const)  # d phi / d y
     y, psi = p[0], p[1]
     y_dot, psi_dot = pd[0], pd[1]
     y_rel = kin.relative_lateral(y, w, r0)

@@ -94,11 +94,12 @@ def contact_generalised_forces(
     total = jnp.sum(forces, axis=0)
     moment = jnp.sum(jnp.cross(kin.contact_offsets(p[0], p[1], w, params, const), forces), axis=0)
     dz = kin.height_gradient(p[0], p[1], w, params, const)
-    roll_slope = const.geometry.roll_coefficient / params.contact.contact_semi_distance
     roll_axis = jnp.stack([jnp.cos(p[1]), jnp.sin(p[1]), jnp.zeros_like(p[1])])  # Rz(psi) e_x
     return jnp.stack(
         [
-            total[1] + dz[0] * total[2] + roll_slope * jnp.sum(roll_axis * moment),
+            total[1]
+            + dz[0] * total[2]
+            + kin.roll_slope(params, const) * jnp.sum(roll_axis * moment),
             dz[1] * total[2] + moment[2],
         ]
     )
