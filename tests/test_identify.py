@@ -20,6 +20,7 @@ from bogie_jax.identify import (
     fit_multistart,
     simulated_annealing,
 )
+from bogie_jax.identify._annealing import anneal_path, anneal_theta
 from bogie_jax.identify._local import t_quantile
 
 
@@ -200,6 +201,22 @@ def test_annealing_and_hybrid_reach_global_minimum():
     hyb = fit_hybrid(TWO, key=jr.PRNGKey(4), n_chains=4, schedule=schedule)
     np.testing.assert_allclose(hyb.best.estimates, [1.0, 0.5], rtol=1e-6)
     assert int(hyb.best.num_fn_evals) > 4 * 3001
+
+
+def test_annealing_path_is_the_running_best():
+    schedule = SimulatedAnnealing(n_iter=300)
+    best, f_best, _, nfev, path = eqx.filter_jit(anneal_path)(
+        TWO, jnp.array([-0.5, 0.0]), jr.PRNGKey(5), schedule
+    )
+    costs = np.asarray(jax.vmap(TWO.cost)(path))
+    assert path.shape == (300, 2) and int(nfev) == 301
+    np.testing.assert_array_equal(path[-1], best)
+    np.testing.assert_allclose(costs[-1], f_best)
+    assert np.all(np.diff(costs) <= 0.0) and costs[-1] < costs[0]
+    # same chain as `anneal_theta`: the path costs nothing in the result
+    np.testing.assert_array_equal(
+        anneal_theta(TWO, jnp.array([-0.5, 0.0]), jr.PRNGKey(5), schedule)[0], best
+    )
 
 
 # --- noise and the Objective adapter -----------------------------------------------------

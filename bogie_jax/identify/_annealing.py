@@ -46,6 +46,17 @@ class AnnealingResult(eqx.Module):
 
 def anneal_theta(problem, theta0, key, schedule: SimulatedAnnealing):
     """Best `(theta, cost)`, acceptance rate and evaluation count of one chain (jit/vmap-safe)."""
+    return _anneal(problem, theta0, key, schedule, keep_path=False)[:4]
+
+
+def anneal_path(problem, theta0, key, schedule: SimulatedAnnealing):
+    """As `anneal_theta`, plus the chain's best point after every proposal, shape
+    `(n_iter, n)`: row `k` is the best of the first `k + 2` evaluations (to measure how many
+    evaluations annealing needs for a given accuracy)."""
+    return _anneal(problem, theta0, key, schedule, keep_path=True)
+
+
+def _anneal(problem, theta0, key, schedule, keep_path):
     cost = lambda th: jnp.nan_to_num(problem.cost(th), nan=jnp.inf)
     f0 = cost(theta0)
     t0 = (
@@ -73,12 +84,12 @@ def anneal_theta(problem, theta0, key, schedule: SimulatedAnnealing):
         improved = f < f_best
         best = jnp.where(improved, theta, best)
         f_best = jnp.where(improved, f, f_best)
-        return (theta, f, best, f_best, accepted + accept), None
+        return (theta, f, best, f_best, accepted + accept), (best if keep_path else None)
 
     keys = jr.split(key, n)
     init = (theta0, f0, theta0, f0, jnp.asarray(0))
-    (_, _, best, f_best, accepted), _ = jax.lax.scan(step, init, (jnp.arange(n), keys))
-    return best, f_best, accepted / n, jnp.asarray(n + 1)
+    (_, _, best, f_best, accepted), path = jax.lax.scan(step, init, (jnp.arange(n), keys))
+    return best, f_best, accepted / n, jnp.asarray(n + 1), path
 
 
 @eqx.filter_jit
