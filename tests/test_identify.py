@@ -213,7 +213,7 @@ def test_annealing_path_is_the_running_best():
     np.testing.assert_array_equal(path[-1], best)
     np.testing.assert_allclose(costs[-1], f_best)
     assert np.all(np.diff(costs) <= 0.0) and costs[-1] < costs[0]
-    # same chain as `anneal_theta`: the path costs nothing in the result
+    # keeping the path does not change the chain: `anneal_theta` ends at the same point
     np.testing.assert_array_equal(
         anneal_theta(TWO, jnp.array([-0.5, 0.0]), jr.PRNGKey(5), schedule)[0], best
     )
