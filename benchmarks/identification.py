@@ -305,8 +305,7 @@ def aggregate(trials):
 def _sa_accuracy_lines(results, budget):
     """Rows of the same-accuracy comparison: the evaluations annealing needed to bring every
     parameter within each accuracy (median over trials; a trial that never got there counts as
-    more than its budget) against multistart LM's solve equivalents (which end below the
-    accuracy shown in its error column)."""
+    more than its budget) against multistart LM's solve equivalents and final error."""
     lines = []
     for (sc, n, noise), agg in results.items():
         sa, ms = agg.get("annealing"), agg.get("multistart-lm")
@@ -380,7 +379,7 @@ def markdown(results, loops, covers, settings):
             "The same accuracy (noise-free): evaluations of one annealing chain until its best "
             "point had every parameter within the accuracy (median over trials, from the chain's "
             "path), against multistart LM's solve equivalents per trial (its median worst error "
-            "in brackets: it ends more accurate than every row). Target: SA / multistart LM >= 10.",
+            "in brackets). Target: SA / multistart LM >= 10.",
             "",
             "| scenario | accuracy | SA evaluations | multistart-LM solve equivalents (error) | "
             "SA / multistart LM |",
