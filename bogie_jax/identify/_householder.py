@@ -54,11 +54,6 @@ class HouseholderQR(lx.AbstractLinearSolver):
         return True
 
 
-def householder_lstsq(a, b):
-    """x minimising |a x - b| for a (m, n), m >= n, of full column rank."""
-    return back_substitute(*triangularise(a, b))
-
-
 def triangularise(a, b):
     """Householder reflections applied to a (m, n) and b (m,) column by column: R (n, n) and
     the first n entries of Q^T b."""
