@@ -11,7 +11,7 @@ from bogie_jax.identify._householder import HouseholderQR
 
 
 @pytest.mark.parametrize("shape", [(7, 3), (200, 6), (40, 40)])
-def test_householder_lstsq_matches_numpy(shape):
+def test_householder_qr_matches_numpy_lstsq(shape):
     rng = np.random.default_rng(sum(shape))
     # columns of very different scales, as sensitivities to physical parameters are
     a = rng.normal(size=shape) * np.logspace(0, 5, shape[1])
