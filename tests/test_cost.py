@@ -147,6 +147,20 @@ def test_vmap_over_theta_equals_a_loop_and_cost_is_half_the_square(objective, th
     np.testing.assert_allclose(batched, looped, rtol=1e-10)  # same solves, different batching
 
 
+def test_non_finite_theta_gives_infinite_residuals_without_simulating_it(objective, theta0):
+    # An adaptive solve at NaN parameters rejects every step until `max_steps`; with
+    # `throw=True` it would raise. The objective answers +inf without solving at that point.
+    import diffrax as dfx
+
+    adaptive = objective.replace(
+        stepsize_controller=dfx.PIDController(rtol=1e-6, atol=1e-9), max_steps=2048, throw=True
+    )
+    thetas = jnp.stack([theta0, theta0.at[1].set(jnp.nan), theta0.at[0].set(-jnp.inf)])
+    r = eqx.filter_jit(lambda obj, th: jax.vmap(obj.residuals)(th))(adaptive, thetas)
+    assert np.all(np.isfinite(r[0])) and np.any(r[0] != 0)
+    assert np.all(np.isposinf(r[1:]))
+
+
 def test_make_objective_input_errors(objective, four_sensors, nominal, short_track):
     rm = objective.residual_model
     names, units = [s.name for s in four_sensors], [s.unit for s in four_sensors]

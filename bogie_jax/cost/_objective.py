@@ -141,9 +141,17 @@ class Objective(eqx.Module):
         return self.selection.apply(self.params, theta)
 
     def residuals(self, theta, args=None) -> Float[Array, " m"]:
-        """r(theta) (n_times * n_channels,): W^(1/2) (y_model - y_meas), sample-major."""
+        """r(theta) (n_times * n_channels,): W^(1/2) (y_model - y_meas), sample-major.
+
+        +inf everywhere at a non-finite `theta`, without simulating it: an adaptive solve with
+        NaN parameters rejects every step until `max_steps` (15x a normal solve here), and
+        under `vmap` every member of the batch would wait for it (e.g. a multistart member that
+        an optimiser left at a NaN point while the others go on)."""
         del args
-        return self.residual_model(self.physical_params(theta))
+        finite = jnp.all(jnp.isfinite(theta))
+        safe = jnp.where(finite, theta, jnp.zeros_like(theta))
+        r = self.residual_model(self.physical_params(safe))
+        return jnp.where(finite, r, jnp.inf)
 
     def cost(self, theta, args=None) -> Float[Array, ""]:
         """J(theta) = 1/2 |r(theta)|^2 (dimensionless: residuals are in noise standard deviations
