@@ -66,6 +66,8 @@ def batch_runner(
       device's share in one chunk).
     - `devices`: devices to shard over (default `jax.devices()`).
     - `failure_fn`: optional `output -> bool` marking failed members (e.g. a solver status).
+
+    `run.compile(batch)` compiles for batches of that shape ahead of time, without running.
     """
     devices = list(devices) if devices is not None else jax.devices()
     n_dev = len(devices)
@@ -88,7 +90,9 @@ def batch_runner(
     sharding = jax.sharding.NamedSharding(mesh, PartitionSpec(None, "batch"))
     sharded = jax.jit(local, in_shardings=sharding, out_shardings=sharding)
 
-    def run(batch) -> BatchResult:
+    compiled = {}
+
+    def prepare(batch):
         n = _batch_size(batch)
         per_device = math.ceil(n / n_dev)
         chunk = min(chunk_size or per_device, per_device)
@@ -102,7 +106,18 @@ def batch_runner(
             .reshape(n_chunks, n_dev * chunk, *x.shape[1:]),
             padded,
         )
-        out, failed = sharded(chunked)
+        return jax.device_put(chunked, sharding), (n, n_chunks, chunk, total)
+
+    def executable(chunked):
+        leaves, treedef = jax.tree.flatten(chunked)
+        key = (treedef, tuple((x.shape, x.dtype, x.weak_type) for x in leaves))
+        if key not in compiled:
+            compiled[key] = sharded.lower(chunked).compile()
+        return compiled[key]
+
+    def run(batch) -> BatchResult:
+        chunked, (n, n_chunks, chunk, total) = prepare(batch)
+        out, failed = executable(chunked)(chunked)
 
         def unchunk(x):
             x = x.reshape(n_chunks, n_dev, chunk, *x.shape[2:]).swapaxes(0, 1)
@@ -110,4 +125,10 @@ def batch_runner(
 
         return BatchResult(outputs=jax.tree.map(unchunk, out), failed=unchunk(failed))
 
+    def compile_for(batch) -> None:
+        """Compile the program for batches shaped like `batch` without running it (kept for
+        every later `run` of that shape)."""
+        executable(prepare(batch)[0])
+
+    run.compile = compile_for
     return run

@@ -48,14 +48,22 @@ class BatchedFits:
             member, devices=devices, failure_fn=lambda out: out[0].result != SUCCESS
         )
 
-    def __call__(self, objective, thetas, keys=None, *, stacked=False):
+    def _inputs(self, objective, thetas, keys, stacked):
         n = thetas.shape[0]
         dynamic = eqx.partition(objective, eqx.is_array)[0]
         if not stacked:
             dynamic = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), dynamic)
         if keys is None:
             keys = jnp.zeros((n, 2), jnp.uint32)
-        return jax.block_until_ready(self.runner((thetas, keys, dynamic)))
+        return thetas, keys, dynamic
+
+    def __call__(self, objective, thetas, keys=None, *, stacked=False):
+        inputs = self._inputs(objective, thetas, keys, stacked)
+        return jax.block_until_ready(self.runner(inputs))
+
+    def compile(self, objective, thetas, keys=None, *, stacked=False) -> None:
+        """Compile for these input shapes ahead of time, without running the fits."""
+        self.runner.compile(self._inputs(objective, thetas, keys, stacked))
 
 
 def batched_fits(objective, method="lm", max_steps=100, *, schedule=None, devices=None):
