@@ -2,8 +2,8 @@
 
 Same scenario, noise-free data, LHS design and compiled single-start LM program as trial 0 of
 `identification.py`; prints one JSON line per start (wall time, LM steps, solver status, worst
-relative error against the truth, final cost, start / nominal) and a summary. Used to compare
-the sharded multistart batch with a loop when the batch is too slow to time.
+relative error against the truth, final cost, start / nominal) and a summary: which starts of a
+multistart reach the truth and where the others end.
 
 Run (from the repository root):
 `python benchmarks/multistart_loop.py primary6 > benchmarks/results/multistart_loop_primary6.jsonl`

@@ -147,18 +147,26 @@ def test_vmap_over_theta_equals_a_loop_and_cost_is_half_the_square(objective, th
     np.testing.assert_allclose(batched, looped, rtol=1e-10)  # same solves, different batching
 
 
-def test_non_finite_theta_gives_infinite_residuals_without_simulating_it(objective, theta0):
+def test_non_finite_parameters_give_infinite_residuals_without_simulating_them(objective, theta0):
     # An adaptive solve at NaN parameters rejects every step until `max_steps`; with
-    # `throw=True` it would raise. The objective answers +inf without solving at that point.
+    # `throw=True` it would raise. The objective answers +inf without solving at such a point.
+    # theta = +inf of the boxed primary.ky (index 2) is its upper bound: a valid point.
     import diffrax as dfx
 
     adaptive = objective.replace(
         stepsize_controller=dfx.PIDController(rtol=1e-6, atol=1e-9), max_steps=2048, throw=True
     )
-    thetas = jnp.stack([theta0, theta0.at[1].set(jnp.nan), theta0.at[0].set(-jnp.inf)])
+    thetas = jnp.stack(
+        [
+            theta0,
+            theta0.at[2].set(jnp.inf),  # the bound of a boxed parameter: simulated
+            theta0.at[1].set(jnp.nan),
+            theta0.at[0].set(jnp.inf),  # log scale: infinite stiffness
+        ]
+    )
     r = eqx.filter_jit(lambda obj, th: jax.vmap(obj.residuals)(th))(adaptive, thetas)
-    assert np.all(np.isfinite(r[0])) and np.any(r[0] != 0)
-    assert np.all(np.isposinf(r[1:]))
+    assert np.all(np.isfinite(r[:2])) and np.any(r[0] != 0) and np.any(r[1] != r[0])
+    assert np.all(np.isposinf(r[2:]))
 
 
 def test_make_objective_input_errors(objective, four_sensors, nominal, short_track):
