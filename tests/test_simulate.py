@@ -74,14 +74,19 @@ def test_batch_runner_sharded_equals_single_device_and_reports_failures(tracks):
     assert jax.device_count() >= 4, "tests/conftest.py exposes 4 host devices"
     params = bj.manchester_benchmark()
 
+    traces = []
+
     def member(ky):
+        traces.append(1)
         return _run(_with_ky(params, ky), tracks[0], 50.0)
 
     kys = jnp.array([3e6, 4e6, jnp.nan, 5e6, 6e6])  # the NaN member must fail alone
     sharded = batch_runner(member, chunk_size=1)(kys)
     one_device = batch_runner(member, devices=jax.devices()[:1])
+    traces.clear()
     one_device.compile(kys)  # ahead of time; the call below runs that program
     one_device = one_device(kys)
+    assert len(traces) == 1  # traced once, by the compile: the run did not compile again
     assert list(np.asarray(sharded.failed)) == [False, False, True, False, False]
     ok = ~np.asarray(sharded.failed)
     scale = np.max(np.abs(np.asarray(one_device.outputs)[ok]))
