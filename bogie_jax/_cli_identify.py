@@ -62,7 +62,8 @@ def add_parser(subparsers):
         "--noise",
         type=float,
         default=1.0,
-        help="synthetic data: noise as a multiple of each sensor's noise std (default 1; 0 = noise-free)",
+        help="synthetic data: noise as a multiple of each sensor's noise std "
+        "(default 1; 0 = noise-free)",
     )
     p.add_argument(
         "--seed", type=int, default=0, help="PRNG seed of the noise and the start design"

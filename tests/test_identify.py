@@ -22,6 +22,7 @@ from bogie_jax.identify import (
 )
 from bogie_jax.identify._annealing import anneal_path, anneal_theta
 from bogie_jax.identify._local import t_quantile
+from bogie_jax.identify._problem import status_name
 
 
 # --- problems ----------------------------------------------------------------------------
@@ -188,6 +189,25 @@ def test_multistart_equals_loop_of_fits():
         np.testing.assert_allclose(res.ends[i], single.estimates, rtol=1e-9, atol=1e-12)
         assert int(res.num_steps[i]) == int(single.num_steps)
     assert np.any(_rel_err(res.best.estimates, OSC_TRUE) < 1e-6)
+
+
+@pytest.mark.parametrize("max_steps", [10, 100])
+def test_queued_multistart_equals_lock_step_batch(max_steps):
+    """The queue (lanes refilled as fits end) takes the steps optimistix takes in one
+    `least_squares` call: same ends, step counts and statuses as the lock-step batch, including
+    starts that fail (NaN region) or run out of steps."""
+    kw = dict(key=jr.PRNGKey(1), n_starts=24, max_steps=max_steps, throw=False)
+    queued = fit_multistart(TWO, lanes=3, **kw)
+    lock_step = fit_multistart(TWO, lanes=None, **kw)
+    np.testing.assert_array_equal(queued.status, lock_step.status)
+    np.testing.assert_array_equal(queued.num_steps, lock_step.num_steps)
+    np.testing.assert_array_equal(queued.failed, lock_step.failed)
+    ok = ~queued.failed
+    np.testing.assert_allclose(queued.ends[ok], lock_step.ends[ok], rtol=1e-12, atol=1e-14)
+    names = {status_name(s) for s in queued.status}
+    assert "nonfinite_input" in names and "successful" in names
+    if max_steps == 10:
+        assert "nonlinear_max_steps_reached" in names
 
 
 # --- annealing and hybrid ----------------------------------------------------------------

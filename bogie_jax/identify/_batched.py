@@ -5,7 +5,8 @@ caller, a new command run) compiles the vmapped batch again: minutes for a simul
 objective. Here the objective's arrays are an input of the compiled batch (broadcast to every
 member, or stacked: one data set per member), and the compiled runner is cached by the
 objective's static structure, the method, `max_steps`, the devices and an optional annealing
-schedule. Members and failure flags are as in `fit_multistart`.
+schedule. Members and failure flags are as in `fit_multistart`; with `lanes`, LM, Gauss-Newton and
+Dogleg fits run as a queue (`lanes` in flight per device, see `bogie_jax.queued_batch`).
 """
 
 import equinox as eqx
@@ -14,6 +15,7 @@ import jax.numpy as jnp
 
 from ..batch import batch_runner
 from ._annealing import anneal_theta
+from ._iteration import queue_lanes, queued_fits, supports_queue
 from ._local import as_method
 from ._problem import SUCCESS, as_problem
 
@@ -28,13 +30,27 @@ class BatchedFits:
       of one structure stacked along a leading member axis (`stack_objectives`).
     - `thetas` (N, n): starts in unconstrained coordinates; `keys` (N, 2): annealing keys
       (only with a `schedule`: a hybrid member anneals from its start, then fits).
+    - `lanes`: `None` (default): every member at once in lock-step (`batch_runner`); an int or
+      `"auto"` (see `queue_lanes`): fits in flight per device of a queued batch (no `schedule`).
     """
 
-    def __init__(self, objective, method="lm", max_steps=100, *, schedule=None, devices=None):
+    def __init__(
+        self, objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes=None
+    ):
         self.static = eqx.partition(objective, eqx.is_array)[1]
         self.method = as_method(method)
         method_ = self.method
         static = self.static
+        theta = jnp.zeros(len(as_problem(objective).transform.lower))
+        lanes = queue_lanes(lanes, theta.size)
+        self.queued = lanes is not None and schedule is None and supports_queue(method_)
+        if self.queued:
+            problem_of = lambda dynamic: as_problem(eqx.combine(dynamic, static))
+            dynamic = eqx.partition(objective, eqx.is_array)[0]
+            self.runner = queued_fits(
+                method_, problem_of, (theta, dynamic), max_steps, lanes=lanes, devices=devices
+            )
+            return
 
         def member(inputs):
             theta0, key, dynamic = inputs
@@ -53,6 +69,8 @@ class BatchedFits:
         dynamic = eqx.partition(objective, eqx.is_array)[0]
         if not stacked:
             dynamic = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), dynamic)
+        if self.queued:
+            return thetas, dynamic
         if keys is None:
             keys = jnp.zeros((n, 2), jnp.uint32)
         return thetas, keys, dynamic
@@ -66,7 +84,7 @@ class BatchedFits:
         self.runner.compile(self._inputs(objective, thetas, keys, stacked))
 
 
-def batched_fits(objective, method="lm", max_steps=100, *, schedule=None, devices=None):
+def batched_fits(objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes=None):
     """A cached `BatchedFits` for `objective`'s structure (compiled once per process)."""
     static = eqx.partition(objective, eqx.is_array)[1]
     leaves, treedef = jax.tree.flatten(static)
@@ -78,10 +96,11 @@ def batched_fits(objective, method="lm", max_steps=100, *, schedule=None, device
         max_steps,
         repr(schedule),
         devs,
+        lanes,
     )
     if key not in _RUNNERS:
         _RUNNERS[key] = BatchedFits(
-            objective, method, max_steps, schedule=schedule, devices=devices
+            objective, method, max_steps, schedule=schedule, devices=devices, lanes=lanes
         )
     return _RUNNERS[key]
 

@@ -1,7 +1,10 @@
 """Multistart: space-filling starts inside the bounds, all local fits as one vmapped batch.
 
-The batch runs through `bogie_jax.batch.batch_runner` (vmap in chunks, sharded over devices);
-a failed start (non-finite output or unsuccessful solver status) is reported, never raised.
+The fits run through `bogie_jax.batch.batch_runner` (every start vmapped in lock-step, in chunks,
+sharded over the devices). With `lanes=k`, LM, Gauss-Newton and Dogleg fits run as a queue
+instead (`bogie_jax.queued_batch`: k fits in flight per device, a lane whose fit has ended takes
+the next start; same steps and statuses, not yet shown faster, see `benchmarks/README.md`). A
+failed start (non-finite output or unsuccessful solver status) is reported, never raised.
 Distinct minima are clustered on the host in box-normalised coordinates.
 """
 
@@ -16,6 +19,7 @@ import jax.random as jr
 import numpy as np
 
 from ..batch import batch_runner
+from ._iteration import queue_lanes, queued_fits, supports_queue
 from ._local import FitResult, as_method, statistics
 from ._problem import SUCCESS, as_problem, bounds, param_names, start_theta, status_name
 
@@ -204,6 +208,7 @@ def fit_multistart(
     design="lhs",
     starts=None,
     max_steps: int = 256,
+    lanes: int | str | None = None,
     chunk_size: int | None = None,
     devices=None,
     cluster_tol: float = 1e-4,
@@ -218,7 +223,10 @@ def fit_multistart(
     - `n_starts`, `design` (`"lhs"`, `"sobol"` or an `AbstractDesign`), or explicit physical
       `starts` of shape `(N, n)` (then `n_starts`/`design` are ignored).
     - `method`, `max_steps`: as in `fit`; solves use `throw=False`.
-    - `chunk_size`, `devices`: passed to `batch_runner`.
+    - `lanes`: `None` (default): lock-step batch; an int or `"auto"` (see `queue_lanes`): LM,
+      Gauss-Newton and Dogleg fits as a queue with that many fits in flight per device.
+    - `chunk_size`: members vmapped together in a lock-step batch; `devices`: devices to shard
+      over (default all).
     - `cluster_tol`: max-norm distance, as a fraction of each box width, within one minimum.
     - `throw`: raise if every start failed.
 
@@ -230,10 +238,20 @@ def fit_multistart(
         thetas = design_starts(problem, key, n_starts, design)
     else:
         thetas = jnp.stack([start_theta(problem.transform, s) for s in np.atleast_2d(starts)])
+    lanes = queue_lanes(lanes, thetas.shape[1])
     tic = time.perf_counter()
-    batch = run_batch(
-        local_member(problem, method, max_steps), thetas, chunk_size=chunk_size, devices=devices
-    )
+    if lanes is not None and supports_queue(method):
+        run = queued_fits(
+            method, lambda _: problem, (thetas[0], None), max_steps, lanes=lanes, devices=devices
+        )
+        batch = jax.block_until_ready(run((thetas, None)))
+    else:
+        batch = run_batch(
+            local_member(problem, method, max_steps),
+            thetas,
+            chunk_size=chunk_size,
+            devices=devices,
+        )
     wall = time.perf_counter() - tic
     return collect(
         problem, thetas, batch, wall, cluster_tol=cluster_tol, bound_tol=bound_tol, throw=throw
