@@ -29,7 +29,8 @@ class IterativeMember(eqx.Module):
     """One member as an iteration (all four functions jit/vmap-safe, `carry` a pytree of arrays).
 
     - `init(x)`: the carry of a new member from its input `x` (called for every refill, so it
-      should be cheap: no simulation).
+      should be cheap: no simulation). A member is stepped at least once, even if `done` holds
+      for its initial carry.
     - `step(carry)`: one iteration.
     - `done(carry)`: whether the member has finished (converged, failed or out of steps).
     - `output(carry)`: the member's result.
@@ -70,8 +71,9 @@ def _device_queue(member: IterativeMember, lanes: int, post: Callable | None):
         def body(state):
             carry, index, next_index, outputs = state
             active = index < m
-            # an idle lane (its queue is empty) is stepped with the others but stays frozen: left
-            # to iterate past its end, a fit can wander to points whose solves take far longer
+            # an idle lane (its queue is empty) is stepped with the others but stays frozen, as a
+            # finished member of a vmapped while_loop does (it re-evaluates its last point rather
+            # than iterating on past its end)
             carry = _where(active, jax.vmap(member.step)(carry), carry)
             finished = jax.vmap(member.done)(carry) & active
             # write finished members (index m is out of range and dropped)
