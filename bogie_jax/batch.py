@@ -51,6 +51,21 @@ def _pad(batch, total: int):
     return jax.tree.map(pad_leaf, batch)
 
 
+def ahead_of_time(jitted: Callable) -> Callable:
+    """`executable(args)`: `jitted` compiled for the structure, shapes and dtypes of `args`,
+    compiled once per such signature and kept."""
+    compiled = {}
+
+    def executable(args):
+        leaves, treedef = jax.tree.flatten(args)
+        key = (treedef, tuple((x.shape, x.dtype, x.weak_type) for x in leaves))
+        if key not in compiled:
+            compiled[key] = jitted.lower(args).compile()
+        return compiled[key]
+
+    return executable
+
+
 def batch_runner(
     fn: Callable,
     *,
@@ -90,8 +105,6 @@ def batch_runner(
     sharding = jax.sharding.NamedSharding(mesh, PartitionSpec(None, "batch"))
     sharded = jax.jit(local, in_shardings=sharding, out_shardings=sharding)
 
-    compiled = {}
-
     def prepare(batch):
         n = _batch_size(batch)
         per_device = math.ceil(n / n_dev)
@@ -108,12 +121,7 @@ def batch_runner(
         )
         return jax.device_put(chunked, sharding), (n, n_chunks, chunk, total)
 
-    def executable(chunked):
-        leaves, treedef = jax.tree.flatten(chunked)
-        key = (treedef, tuple((x.shape, x.dtype, x.weak_type) for x in leaves))
-        if key not in compiled:
-            compiled[key] = sharded.lower(chunked).compile()
-        return compiled[key]
+    executable = ahead_of_time(sharded)
 
     def run(batch) -> BatchResult:
         chunked, (n, n_chunks, chunk, total) = prepare(batch)

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import PartitionSpec
 
-from .batch import BatchResult, _all_finite, _batch_size, _pad
+from .batch import BatchResult, _all_finite, _batch_size, _pad, ahead_of_time
 
 
 class IterativeMember(eqx.Module):
@@ -136,7 +136,6 @@ def queued_runner(
 
     sharding = jax.sharding.NamedSharding(mesh, PartitionSpec("batch"))
     sharded = jax.jit(jax.vmap(flagged), in_shardings=sharding, out_shardings=sharding)
-    compiled = {}
 
     def prepare(batch):
         n = _batch_size(batch)
@@ -145,12 +144,7 @@ def queued_runner(
         split = jax.tree.map(lambda x: x.reshape(n_dev, per_device, *x.shape[1:]), padded)
         return jax.device_put(split, sharding), n
 
-    def executable(split):
-        leaves, treedef = jax.tree.flatten(split)
-        key = (treedef, tuple((x.shape, x.dtype, x.weak_type) for x in leaves))
-        if key not in compiled:
-            compiled[key] = sharded.lower(split).compile()
-        return compiled[key]
+    executable = ahead_of_time(sharded)
 
     def run(batch) -> BatchResult:
         split, n = prepare(batch)
