@@ -51,6 +51,14 @@ def _pad(batch, total: int):
     return jax.tree.map(pad_leaf, batch)
 
 
+def member_failed(out, failure_fn: Callable | None = None) -> jax.Array:
+    """Whether one member's output is non-finite or flagged by `failure_fn`."""
+    failed = jnp.logical_not(_all_finite(out))
+    if failure_fn is not None:
+        failed = failed | jnp.asarray(failure_fn(out))
+    return failed
+
+
 def ahead_of_time(jitted: Callable) -> Callable:
     """`executable(args)`: `jitted` compiled for the structure, shapes and dtypes of `args`,
     compiled once per such signature and kept."""
@@ -90,9 +98,7 @@ def batch_runner(
 
     def member(x):
         out = fn(x)
-        failed = jnp.logical_not(_all_finite(out))
-        if failure_fn is not None:
-            failed = failed | jnp.asarray(failure_fn(out))
+        failed = member_failed(out, failure_fn)
         return out, failed
 
     def local(chunked):

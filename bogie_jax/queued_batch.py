@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import PartitionSpec
 
-from .batch import BatchResult, _all_finite, _batch_size, _pad, ahead_of_time
+from .batch import BatchResult, _batch_size, _pad, ahead_of_time, member_failed
 
 
 class IterativeMember(eqx.Module):
@@ -127,12 +127,7 @@ def queued_runner(
 
     def flagged(items):
         out = queue(items)
-
-        def failed(o):
-            bad = jnp.logical_not(_all_finite(o))
-            return bad | jnp.asarray(failure_fn(o)) if failure_fn is not None else bad
-
-        return out, jax.vmap(failed)(out)
+        return out, jax.vmap(lambda o: member_failed(o, failure_fn))(out)
 
     sharding = jax.sharding.NamedSharding(mesh, PartitionSpec("batch"))
     sharded = jax.jit(jax.vmap(flagged), in_shardings=sharding, out_shardings=sharding)

@@ -24,10 +24,6 @@ from ._problem import SUCCESS
 MAX_STEPS = int(optx.RESULTS.nonlinear_max_steps_reached._value)
 
 
-def _finite(tree):
-    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(tree)]))
-
-
 def least_squares_member(method: LeastSquaresMethod, problem_of, template, max_steps: int):
     """An `IterativeMember` of a least-squares fit with input `(theta0, data)`, output a
     `LocalOutput`.
@@ -52,7 +48,9 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, template, max_s
 
     def status(theta, problem, state):
         terminate, result = solver.terminate(fn, theta, problem, options, state, tags)
-        return terminate, optx.RESULTS.where(_finite(theta), result, optx.RESULTS.nonfinite)
+        return terminate, optx.RESULTS.where(
+            jnp.all(jnp.isfinite(theta)), result, optx.RESULTS.nonfinite
+        )
 
     def init(x):
         theta0, data = x
@@ -88,10 +86,10 @@ def queue_lanes(lanes, n_params: int) -> int | None:
     """Lanes per device for a queued batch: an int as given, `None` (lock-step) as given, or
     `"auto"`: about 32 residual tangents per device and step, `ceil(32 / (n + 1))` fits.
 
-    On a CPU a vmapped least-squares step is cheaper per fit than single steps only while the
-    batch is small: the forward-mode Jacobian already carries `n` tangents, and XLA's CPU kernels
-    grow linearly beyond a few tens of lanes (measured on `primary3`, 3 parameters: 16 fits per
-    step cost 4.2x what 2 fits cost; at 10 parameters 16 fits cost what 16 single steps cost).
+    `"auto"` is a heuristic, not a measured optimum: each fit's forward-mode Jacobian already
+    carries `n` tangents, so fewer fits are needed to fill the vector units as `n` grows. On the
+    2-core CPU a step of 16 fits cost about 4.2x a step of 2 fits at 3 parameters, and 16 fits
+    cost about what 16 single steps cost at 10 parameters (`benchmarks/README.md`).
     """
     if lanes is None:
         return None
