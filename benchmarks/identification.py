@@ -58,7 +58,7 @@ import jax.random as jr
 import numpy as np
 
 from bogie_jax.identify import SimulatedAnnealing
-from bogie_jax.identify._annealing import anneal_path
+from bogie_jax.identify._annealing import anneal_start, anneal_steps
 from bogie_jax.identify._batched import BatchedFits, stack_objectives
 from bogie_jax.identify._local import LOCAL_METHODS, statistics
 from bogie_jax.identify._multistart import design_starts
@@ -67,7 +67,7 @@ from bogie_jax.identify._scenarios import relative_errors, scenario_problem
 
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._common import write_outputs  # noqa: E402
+from benchmarks._common import RESULTS, write_outputs  # noqa: E402
 
 
 METHODS = ("lm", "multistart-lm", "bfgs", "nelder-mead", "pattern", "annealing", "hybrid")
@@ -118,17 +118,10 @@ def run_trial(sc, names, trial, noisy, args, cache):
         r, wall = _timed_local(problem, theta_nom, m, steps, cache)
         out[m] = _summary(problem, r.theta, r.num_fn_evals, r.num_jac_evals, wall, truth, noisy)
     if "annealing" in args.methods:
-        sched = SimulatedAnnealing(n_iter=args.sa_iter, step_size=0.5)
-        sa_args = (problem, theta_nom, jr.fold_in(key, 1), sched)
-        if ("sa", n) not in cache:  # compile only (ahead of time), outside the timing
-            cache[("sa", n)] = eqx.filter_jit(anneal_path).lower(*sa_args).compile()
-        f = cache[("sa", n)]
-        tic = time.perf_counter()
-        best, _, _, nfev, path = jax.block_until_ready(
-            f(problem, theta_nom, jr.fold_in(key, 1), sched)
+        tag = dict(scenario=sc, noise_percent=2 if noisy else 0, trial=trial)
+        out["annealing"] = run_annealing(
+            problem, theta_nom, jr.fold_in(key, 1), truth, noisy, args, cache, tag
         )
-        out["annealing"] = _summary(problem, best, nfev, 0, time.perf_counter() - tic, truth, noisy)
-        out["annealing"]["evals_to_accuracy"] = evals_to_accuracy(problem, path, truth)
     design_key = jr.fold_in(key, 2)
     if "multistart-lm" in args.methods:
         if ("ms", n) not in cache:
@@ -169,16 +162,61 @@ def run_trial(sc, names, trial, noisy, args, cache):
 ACCURACIES = (1e-2, 1e-3, 1e-4, 1e-5)
 
 
-def evals_to_accuracy(problem, path, truth):
+def run_annealing(problem, theta0, key, truth, noisy, args, cache, tag):
+    """One annealing chain of `--sa-iter` proposals, run in pieces of `--sa-piece`: after every
+    piece the chain's progress (evaluations, wall time, best cost and error, evaluations to
+    each accuracy so far) is appended to `results/NAME_annealing.jsonl`, so an interrupted long
+    chain keeps what it has measured."""
+    import json
+
+    sched = SimulatedAnnealing(n_iter=args.sa_iter, step_size=0.5, min_step=args.sa_min_step)
+    piece = min(args.sa_piece or sched.n_iter, sched.n_iter)
+    n = theta0.size
+    if ("sa", n) not in cache:  # compile only (ahead of time), outside the timing
+        start = eqx.filter_jit(anneal_start)
+        steps = eqx.filter_jit(lambda p, st, k, sc: anneal_steps(p, st, k, sc, piece))
+        st0 = start(problem, theta0, sched)
+        cache[("sa", n)] = (start, steps.lower(problem, st0, key, sched).compile())
+    start, steps = cache[("sa", n)]
+    tic = time.perf_counter()
+    state = jax.block_until_ready(start(problem, theta0, sched))
+    wall = time.perf_counter() - tic
+    hits = {f"{tol:g}": None for tol in ACCURACIES}
+    log = RESULTS / f"{args.name}_annealing.jsonl"
+    while int(state.k) < sched.n_iter:
+        done = int(state.k)
+        tic = time.perf_counter()
+        state, path = jax.block_until_ready(steps(problem, state, key, sched))
+        wall += time.perf_counter() - tic
+        for tol, evals in evals_to_accuracy(problem, path, truth, done).items():
+            hits[tol] = hits[tol] or evals
+        best = np.asarray(problem.transform.to_physical(state.best))
+        record = dict(
+            **tag,
+            evaluations=int(state.k) + 1,
+            wall_s=round(wall, 2),
+            best_cost=float(state.best_cost),
+            max_rel_error=float(relative_errors(best, truth).max()),
+            evals_to_accuracy=hits,
+        )
+        with log.open("a") as f:
+            f.write(json.dumps(record) + "\n")
+    out = _summary(problem, state.best, int(state.k) + 1, 0, wall, truth, noisy)
+    out["evals_to_accuracy"] = hits
+    return out
+
+
+def evals_to_accuracy(problem, path, truth, done=0):
     """`{tol: evaluations}`: how many cost evaluations an annealing chain took until its best
-    point had every parameter within `tol` (relative) of the truth; `None`: not within its
-    budget."""
+    point had every parameter within `tol` (relative) of the truth; `None`: not within this
+    `path` (its best point after each of proposals `done + 1, done + 2, ...`)."""
     est = np.asarray(jax.vmap(problem.transform.to_physical)(path))
     worst = relative_errors(est, truth).max(axis=1)
     out = {}
     for tol in ACCURACIES:
         hit = np.flatnonzero(worst < tol)
-        out[f"{tol:g}"] = int(hit[0]) + 2 if hit.size else None  # row k: k + 2 evaluations
+        # row k: the start and the first done + k + 1 proposals
+        out[f"{tol:g}"] = done + int(hit[0]) + 2 if hit.size else None
     return out
 
 
@@ -439,14 +477,27 @@ def main(argv=None):
     p.add_argument("--max-steps", type=int, default=100)
     p.add_argument(
         "--lanes",
-        default="0",
-        help="multistart LM fits in flight per device, queued (auto: ceil(32 / (n + 1))); "
-        "0 (default): lock-step batch",
+        default="auto",
+        help="multistart LM fits in flight per device, queued (default auto: ceil(32 / (n + 1))); "
+        "0: lock-step batch",
     )
     p.add_argument(
         "--dfo-steps", type=int, default=400, help="steps of Nelder-Mead / pattern search"
     )
     p.add_argument("--sa-iter", type=int, default=2000)
+    p.add_argument(
+        "--sa-piece",
+        type=int,
+        default=2000,
+        help="annealing proposals per compiled piece; progress is saved after each "
+        "(must divide --sa-iter)",
+    )
+    p.add_argument(
+        "--sa-min-step",
+        type=float,
+        default=1e-3,
+        help="smallest annealing proposal scale (unconstrained coordinates)",
+    )
     p.add_argument("--hybrid-chains", type=int, default=4)
     p.add_argument("--hybrid-iter", type=int, default=200)
     p.add_argument("--rtol", type=float, default=1e-8)
@@ -467,6 +518,10 @@ def main(argv=None):
     if args.from_json:
         return report_from_json(args.name)
     args.methods = tuple(m.strip() for m in args.methods.split(","))
+    if args.sa_piece < 1 or args.sa_iter % min(args.sa_piece, args.sa_iter):
+        p.error(
+            f"--sa-piece must be >= 1 and divide --sa-iter = {args.sa_iter}, got {args.sa_piece}"
+        )
     settings = {k: v for k, v in vars(args).items() if k != "name"}
     settings["devices"] = jax.device_count()
     results, loops, raw, covers = {}, {}, [], {}

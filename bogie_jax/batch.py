@@ -2,9 +2,9 @@
 
 `batch_runner(fn)` returns a compiled function that evaluates `fn` over the leading axis of a
 pytree batch: `vmap` over chunks of `chunk_size` members, `lax.map` over the chunks (bounded
-memory), and the members of each chunk spread over the devices by `jax.sharding` (on a CPU,
-expose several host devices with `XLA_FLAGS=--xla_force_host_platform_device_count=N` before
-importing JAX).
+memory), and the members of each chunk spread over the devices of a `jax.sharding.Mesh` by
+`jax.shard_map` (on a CPU, expose several host devices with
+`XLA_FLAGS=--xla_force_host_platform_device_count=N` before importing JAX).
 A member whose output is non-finite, or flagged by `failure_fn`, is reported in
 `BatchResult.failed`; nothing raises because of one member (use `throw=False` in solves).
 """
@@ -36,7 +36,9 @@ def _all_finite(tree):
 def _batch_size(batch) -> int:
     sizes = {np.shape(x)[0] for x in jax.tree.leaves(batch)}
     if len(sizes) != 1:
-        raise ValueError(f"`batch` leaves must share one leading (member) axis, got sizes {sorted(sizes)}")
+        raise ValueError(
+            f"`batch` leaves must share one leading (member) axis, got sizes {sorted(sizes)}"
+        )
     return sizes.pop()
 
 
@@ -57,6 +59,22 @@ def member_failed(out, failure_fn: Callable | None = None) -> jax.Array:
     if failure_fn is not None:
         failed = failed | jnp.asarray(failure_fn(out))
     return failed
+
+
+def per_device(fn: Callable, devices, spec: PartitionSpec):
+    """`jit` of `fn` run on each device's block of the member axis on its own (`shard_map`).
+
+    Not a sharded `jit` of the whole batch (GSPMD): there, a vmapped `while_loop` (every ODE
+    solve, every fit) ends when the members of *all* devices are done, so every iteration
+    synchronises the devices; on a 2-device CPU that made a sharded LM batch slower than the same
+    batch on one device (`benchmarks/README.md`). Each device's block runs its own loops here.
+    `check_vma=False` because `fn` uses no collectives and optimistix's Jacobian products
+    do not type-check under the varying-manual-axes check (jax 0.10.2).
+    """
+    mesh = jax.sharding.Mesh(np.array(list(devices)), ("batch",))
+    sharding = jax.sharding.NamedSharding(mesh, spec)
+    mapped = jax.shard_map(fn, mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False)
+    return jax.jit(mapped, in_shardings=sharding, out_shardings=sharding), sharding
 
 
 def ahead_of_time(jitted: Callable) -> Callable:
@@ -94,7 +112,6 @@ def batch_runner(
     """
     devices = list(devices) if devices is not None else jax.devices()
     n_dev = len(devices)
-    mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
 
     def member(x):
         out = fn(x)
@@ -104,12 +121,9 @@ def batch_runner(
     def local(chunked):
         return jax.lax.map(jax.vmap(member), chunked)
 
-    # Members are spread over the devices by sharding the member axis of the jitted batch
-    # (GSPMD), not by `shard_map`: inside `shard_map` the Jacobian products of optimistix
-    # Gauss-Newton/LM/Dogleg fail (primal/tangent "varying manual axes" mismatch with
-    # `check_vma=True`, a lineax structure mismatch with `check_vma=False`; jax 0.10.2).
-    sharding = jax.sharding.NamedSharding(mesh, PartitionSpec(None, "batch"))
-    sharded = jax.jit(local, in_shardings=sharding, out_shardings=sharding)
+    # each device maps over its own chunks: (n_chunks, chunk, ...) of the (n_chunks, n_dev *
+    # chunk, ...) batch
+    sharded, sharding = per_device(local, devices, PartitionSpec(None, "batch"))
 
     def prepare(batch):
         n = _batch_size(batch)
@@ -120,9 +134,11 @@ def batch_runner(
         padded = _pad(batch, total)
         # (n_chunks, n_dev * chunk, ...): chunk k of every device sits in row k.
         chunked = jax.tree.map(
-            lambda x: x.reshape(n_dev, n_chunks, chunk, *x.shape[1:])
-            .swapaxes(0, 1)
-            .reshape(n_chunks, n_dev * chunk, *x.shape[1:]),
+            lambda x: (
+                x.reshape(n_dev, n_chunks, chunk, *x.shape[1:])
+                .swapaxes(0, 1)
+                .reshape(n_chunks, n_dev * chunk, *x.shape[1:])
+            ),
             padded,
         )
         return jax.device_put(chunked, sharding), (n, n_chunks, chunk, total)

@@ -9,8 +9,8 @@ by the lanes, plus one tail; members need not take equal numbers of steps.
 
 A member is an `IterativeMember`: `init(x) -> carry`, `step(carry) -> carry`,
 `done(carry) -> bool` and `output(carry) -> pytree`. Members are spread over the devices as in
-`batch_runner` (the queue axis sharded with `jax.sharding`); the outputs come back in input
-order with the same per-member failure flags.
+`batch_runner` (each device runs the queue of its block of members, `jax.shard_map`); the outputs
+come back in input order with the same per-member failure flags.
 """
 
 import math
@@ -19,10 +19,9 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jax.sharding import PartitionSpec
 
-from .batch import BatchResult, _batch_size, _pad, ahead_of_time, member_failed
+from .batch import BatchResult, _batch_size, _pad, ahead_of_time, member_failed, per_device
 
 
 class IterativeMember(eqx.Module):
@@ -122,30 +121,27 @@ def queued_runner(
         raise ValueError(f"`lanes` must be >= 1, got {lanes}")
     devices = list(devices) if devices is not None else jax.devices()
     n_dev = len(devices)
-    mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
     queue = _device_queue(member, int(lanes), post)
 
     def flagged(items):
         out = queue(items)
         return out, jax.vmap(lambda o: member_failed(o, failure_fn))(out)
 
-    sharding = jax.sharding.NamedSharding(mesh, PartitionSpec("batch"))
-    sharded = jax.jit(jax.vmap(flagged), in_shardings=sharding, out_shardings=sharding)
+    # each device runs the queue of its contiguous block of members
+    sharded, sharding = per_device(flagged, devices, PartitionSpec("batch"))
 
     def prepare(batch):
         n = _batch_size(batch)
-        per_device = math.ceil(n / n_dev)
-        padded = _pad(batch, per_device * n_dev)
-        split = jax.tree.map(lambda x: x.reshape(n_dev, per_device, *x.shape[1:]), padded)
-        return jax.device_put(split, sharding), n
+        padded = _pad(batch, math.ceil(n / n_dev) * n_dev)
+        return jax.device_put(padded, sharding), n
 
     executable = ahead_of_time(sharded)
 
     def run(batch) -> BatchResult:
-        split, n = prepare(batch)
-        out, failed = executable(split)(split)
-        unsplit = lambda x: x.reshape(-1, *x.shape[2:])[:n]
-        return BatchResult(outputs=jax.tree.map(unsplit, out), failed=unsplit(failed))
+        padded, n = prepare(batch)
+        out, failed = executable(padded)(padded)
+        head = lambda x: x[:n]
+        return BatchResult(outputs=jax.tree.map(head, out), failed=head(failed))
 
     def compile_for(batch) -> None:
         """Compile for batches shaped like `batch` without running (kept for later runs)."""

@@ -20,7 +20,7 @@ from bogie_jax.identify import (
     fit_multistart,
     simulated_annealing,
 )
-from bogie_jax.identify._annealing import anneal_path, anneal_theta
+from bogie_jax.identify._annealing import anneal_path, anneal_start, anneal_steps, anneal_theta
 from bogie_jax.identify._local import t_quantile
 from bogie_jax.identify._problem import status_name
 
@@ -160,7 +160,8 @@ def test_bound_flag():
 
 
 def test_multistart_two_minima_clusters_and_failures():
-    res = fit_multistart(TWO, key=jr.PRNGKey(1), n_starts=24, chunk_size=8)
+    # the lock-step batch in chunks (the queue, the default, is compared with it below)
+    res = fit_multistart(TWO, key=jr.PRNGKey(1), n_starts=24, chunk_size=8, lanes=None)
     starts_x = res.starts[:, 0]
     # starts in the NaN region fail, are reported, and do not kill the batch
     assert np.any(starts_x < -1.5) and np.all(res.failed[starts_x < -1.5])
@@ -174,7 +175,7 @@ def test_multistart_two_minima_clusters_and_failures():
     np.testing.assert_allclose(res.best.estimates, [1.0, 0.5], rtol=1e-6)
     # the same batch on one device (conftest exposes 4 host devices): same answers
     single = fit_multistart(
-        TWO, key=jr.PRNGKey(1), n_starts=24, chunk_size=8, devices=jax.devices()[:1]
+        TWO, key=jr.PRNGKey(1), n_starts=24, chunk_size=8, lanes=None, devices=jax.devices()[:1]
     )
     np.testing.assert_array_equal(single.failed, res.failed)
     np.testing.assert_allclose(
@@ -221,6 +222,24 @@ def test_annealing_and_hybrid_reach_global_minimum():
     hyb = fit_hybrid(TWO, key=jr.PRNGKey(4), n_chains=4, schedule=schedule)
     np.testing.assert_allclose(hyb.best.estimates, [1.0, 0.5], rtol=1e-6)
     assert int(hyb.best.num_fn_evals) > 4 * 3001
+
+
+def test_annealing_in_pieces_is_the_chain_in_one_piece():
+    """A long chain run (and saved) piece by piece takes the same proposals as in one piece."""
+    schedule = SimulatedAnnealing(n_iter=300)
+    theta0, key = jnp.array([-0.5, 0.0]), jr.PRNGKey(5)
+    best, f_best, rate, _, path = eqx.filter_jit(anneal_path)(TWO, theta0, key, schedule)
+    step = eqx.filter_jit(lambda st: anneal_steps(TWO, st, key, schedule, 100))
+    state, paths = anneal_start(TWO, theta0, schedule), []
+    for _ in range(3):
+        state, p = step(state)
+        paths.append(p)
+    np.testing.assert_array_equal(np.concatenate(paths), path)
+    np.testing.assert_array_equal(state.best, best)
+    assert float(state.best_cost) == float(f_best) and int(state.k) == 300
+    assert float(state.accepted) / 300 == float(rate)
+    with pytest.raises(ValueError, match="length"):
+        anneal_steps(TWO, state, key, schedule, 301)
 
 
 def test_annealing_path_is_the_running_best():

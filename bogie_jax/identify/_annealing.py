@@ -44,52 +44,85 @@ class AnnealingResult(eqx.Module):
     wall_time: float = eqx.field(static=True)
 
 
+class AnnealingState(eqx.Module):
+    """Where a chain stands: the next iteration `k`, the current point and cost, the best point
+    and cost so far, the accepted proposals, and the initial temperature `t0` [cost units]."""
+
+    k: jax.Array
+    theta: jax.Array
+    cost: jax.Array
+    best: jax.Array
+    best_cost: jax.Array
+    accepted: jax.Array
+    t0: jax.Array
+
+
+def _chain_cost(problem, theta):
+    return jnp.nan_to_num(problem.cost(theta), nan=jnp.inf)
+
+
+def anneal_start(problem, theta0, schedule: SimulatedAnnealing) -> AnnealingState:
+    """A chain at `theta0` before its first proposal (one cost evaluation)."""
+    f0 = _chain_cost(problem, theta0)
+    t0 = (
+        jnp.maximum(f0, 1e-300)
+        if schedule.initial_temperature is None
+        else jnp.asarray(schedule.initial_temperature, f0.dtype)
+    )
+    return AnnealingState(jnp.asarray(0), theta0, f0, theta0, f0, jnp.asarray(0), t0)
+
+
+def anneal_steps(
+    problem, state: AnnealingState, key, schedule: SimulatedAnnealing, length: int, keep_path=True
+):
+    """`length` (static) further proposals of the chain of `key`: `(state, path)`, `path` the
+    best point after every proposal, shape `(length, n)` (`None` without `keep_path`).
+
+    Steps run in pieces give the chain run in one piece (proposal `k` always uses the `k`-th of
+    `jr.split(key, schedule.n_iter)`), so a long chain can be run and saved piece by piece;
+    `state.k + length` must not exceed `schedule.n_iter`.
+    """
+    n = schedule.n_iter
+    if not 1 <= length <= n:
+        raise ValueError(f"`length` must be in [1, n_iter = {n}], got {length}")
+
+    def step(st: AnnealingState, key):
+        frac = st.k / n
+        temp = st.t0 * schedule.final_ratio**frac
+        scale = jnp.maximum(
+            schedule.step_size * jnp.sqrt(schedule.final_ratio**frac), schedule.min_step
+        )
+        k_prop, k_acc = jr.split(key)
+        trial = st.theta + scale * jr.normal(k_prop, st.theta.shape, st.theta.dtype)
+        f_trial = _chain_cost(problem, trial)
+        accept = (f_trial < st.cost) | (jr.uniform(k_acc) < jnp.exp(-(f_trial - st.cost) / temp))
+        accept = accept & jnp.isfinite(f_trial)
+        theta = jnp.where(accept, trial, st.theta)
+        f = jnp.where(accept, f_trial, st.cost)
+        improved = f < st.best_cost
+        best = jnp.where(improved, theta, st.best)
+        f_best = jnp.where(improved, f, st.best_cost)
+        st = AnnealingState(st.k + 1, theta, f, best, f_best, st.accepted + accept, st.t0)
+        return st, (best if keep_path else None)
+
+    keys = jax.lax.dynamic_slice_in_dim(jr.split(key, n), state.k, length)
+    return jax.lax.scan(step, state, keys)
+
+
 def anneal_theta(problem, theta0, key, schedule: SimulatedAnnealing):
     """Best `(theta, cost)`, acceptance rate and evaluation count of one chain (jit/vmap-safe)."""
-    return _anneal(problem, theta0, key, schedule, keep_path=False)[:4]
+    n = schedule.n_iter
+    st, _ = anneal_steps(problem, anneal_start(problem, theta0, schedule), key, schedule, n, False)
+    return st.best, st.best_cost, st.accepted / n, jnp.asarray(n + 1)
 
 
 def anneal_path(problem, theta0, key, schedule: SimulatedAnnealing):
     """As `anneal_theta`, plus the chain's best point after every proposal, shape
     `(n_iter, n)`: row `k` is the best of the first `k + 2` evaluations (to measure how many
     evaluations annealing needs for a given accuracy)."""
-    return _anneal(problem, theta0, key, schedule, keep_path=True)
-
-
-def _anneal(problem, theta0, key, schedule, keep_path):
-    cost = lambda th: jnp.nan_to_num(problem.cost(th), nan=jnp.inf)
-    f0 = cost(theta0)
-    t0 = (
-        jnp.maximum(f0, 1e-300)
-        if schedule.initial_temperature is None
-        else jnp.asarray(schedule.initial_temperature)
-    )
     n = schedule.n_iter
-
-    def step(carry, inputs):
-        theta, f, best, f_best, accepted = carry
-        k, key = inputs
-        frac = k / n
-        temp = t0 * schedule.final_ratio**frac
-        scale = jnp.maximum(
-            schedule.step_size * jnp.sqrt(schedule.final_ratio**frac), schedule.min_step
-        )
-        k_prop, k_acc = jr.split(key)
-        trial = theta + scale * jr.normal(k_prop, theta.shape, theta.dtype)
-        f_trial = cost(trial)
-        accept = (f_trial < f) | (jr.uniform(k_acc) < jnp.exp(-(f_trial - f) / temp))
-        accept = accept & jnp.isfinite(f_trial)
-        theta = jnp.where(accept, trial, theta)
-        f = jnp.where(accept, f_trial, f)
-        improved = f < f_best
-        best = jnp.where(improved, theta, best)
-        f_best = jnp.where(improved, f, f_best)
-        return (theta, f, best, f_best, accepted + accept), (best if keep_path else None)
-
-    keys = jr.split(key, n)
-    init = (theta0, f0, theta0, f0, jnp.asarray(0))
-    (_, _, best, f_best, accepted), path = jax.lax.scan(step, init, (jnp.arange(n), keys))
-    return best, f_best, accepted / n, jnp.asarray(n + 1), path
+    st, path = anneal_steps(problem, anneal_start(problem, theta0, schedule), key, schedule, n)
+    return st.best, st.best_cost, st.accepted / n, jnp.asarray(n + 1), path
 
 
 @eqx.filter_jit

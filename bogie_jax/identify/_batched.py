@@ -5,8 +5,8 @@ caller, a new command run) compiles the vmapped batch again: minutes for a simul
 objective. Here the objective's arrays are an input of the compiled batch (broadcast to every
 member, or stacked: one data set per member), and the compiled runner is cached by the
 objective's static structure, the method, `max_steps`, the devices and an optional annealing
-schedule. Members and failure flags are as in `fit_multistart`; with `lanes`, LM, Gauss-Newton and
-Dogleg fits run as a queue (`lanes` in flight per device, see `bogie_jax.queued_batch`).
+schedule. Members and failure flags are as in `fit_multistart`; LM, Gauss-Newton and Dogleg fits
+run as a queue (`lanes` in flight per device, see `bogie_jax.queued_batch`) unless `lanes=None`.
 """
 
 import equinox as eqx
@@ -30,26 +30,23 @@ class BatchedFits:
       of one structure stacked along a leading member axis (`stack_objectives`).
     - `thetas` (N, n): starts in unconstrained coordinates; `keys` (N, 2): annealing keys
       (only with a `schedule`: a hybrid member anneals from its start, then fits).
-    - `lanes`: `None` (default): every member at once in lock-step (`batch_runner`); an int or
-      `"auto"` (see `queue_lanes`): fits in flight per device of a queued batch (no `schedule`).
+    - `lanes`: fits in flight per device of a queued batch, `"auto"` (default, see
+      `queue_lanes`) or an int; `None`, or with a `schedule`: every member at once in lock-step
+      (`batch_runner`).
     """
 
     def __init__(
-        self, objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes=None
+        self, objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes="auto"
     ):
         self.static = eqx.partition(objective, eqx.is_array)[1]
         self.method = as_method(method)
         method_ = self.method
         static = self.static
-        theta = jnp.zeros(len(as_problem(objective).transform.lower))
-        lanes = queue_lanes(lanes, theta.size)
+        lanes = queue_lanes(lanes, len(as_problem(objective).transform.lower))
         self.queued = lanes is not None and schedule is None and supports_queue(method_)
         if self.queued:
             problem_of = lambda dynamic: as_problem(eqx.combine(dynamic, static))
-            dynamic = eqx.partition(objective, eqx.is_array)[0]
-            self.runner = queued_fits(
-                method_, problem_of, (theta, dynamic), max_steps, lanes=lanes, devices=devices
-            )
+            self.runner = queued_fits(method_, problem_of, max_steps, lanes=lanes, devices=devices)
             return
 
         def member(inputs):
@@ -84,7 +81,9 @@ class BatchedFits:
         self.runner.compile(self._inputs(objective, thetas, keys, stacked))
 
 
-def batched_fits(objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes=None):
+def batched_fits(
+    objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes="auto"
+):
     """A cached `BatchedFits` for `objective`'s structure (compiled once per process)."""
     static = eqx.partition(objective, eqx.is_array)[1]
     leaves, treedef = jax.tree.flatten(static)

@@ -34,7 +34,11 @@ class HouseholderQR(lx.AbstractLinearSolver):
     def compute(self, state, vector, options: dict[str, Any]):
         del options
         matrix, packed = state
-        b = lxi.ravel_vector(vector, packed)
+        # not `lxi.ravel_vector`: its structure check also compares the varying-manual-axes
+        # annotation, which differs between the operator and the vector inside `shard_map`
+        leaves = jax.tree.leaves(vector)
+        dtype = jnp.result_type(*leaves)
+        b = jnp.concatenate([x.astype(dtype).reshape(-1) for x in leaves])
         r, qtb = triangularise(matrix, b)
         x = back_substitute(r, qtb)
         # numerically rank deficient: a diagonal of R at rounding level of the largest

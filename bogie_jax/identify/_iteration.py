@@ -24,14 +24,12 @@ from ._problem import SUCCESS
 MAX_STEPS = int(optx.RESULTS.nonlinear_max_steps_reached._value)
 
 
-def least_squares_member(method: LeastSquaresMethod, problem_of, template, max_steps: int):
+def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int):
     """An `IterativeMember` of a least-squares fit with input `(theta0, data)`, output a
     `LocalOutput`.
 
     - `problem_of(data)`: the member's `LeastSquaresProblem` (its arrays travel in `data`, so
       the members of one batch may fit different data sets).
-    - `template`: any input `(theta0, data)` (fixes shapes and the solver state's static
-      structure).
     """
     solver = method.solver
     options, tags = {}, frozenset()
@@ -42,9 +40,6 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, template, max_s
     def solver_init(theta0, problem):
         f_struct = jax.eval_shape(lambda th: fn(th, problem)[0], theta0)
         return solver.init(fn, theta0, problem, options, f_struct, None, tags)
-
-    theta_t, data_t = template
-    static = eqx.partition(solver_init(theta_t, problem_of(data_t)), eqx.is_array)[1]
 
     def status(theta, problem, state):
         terminate, result = solver.terminate(fn, theta, problem, options, state, tags)
@@ -63,6 +58,9 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, template, max_s
     def step(carry):
         theta, steps, dynamic, _, _, data = carry
         problem = problem_of(data)
+        # the state's static part (operator structures) rebuilt in the caller's trace: inside
+        # `shard_map` its shape structs carry the mesh, so one built outside would not match
+        static = eqx.partition(solver_init(theta, problem), eqx.is_array)[1]
         state = eqx.combine(dynamic, static)
         new_theta, state, _ = solver.step(fn, theta, problem, options, state, tags)
         terminate, result = status(theta, problem, state)  # optimistix tests the old iterate
@@ -87,9 +85,9 @@ def queue_lanes(lanes, n_params: int) -> int | None:
     `"auto"`: about 32 residual tangents per device and step, `ceil(32 / (n + 1))` fits.
 
     `"auto"` is a heuristic, not a measured optimum: each fit's forward-mode Jacobian already
-    carries `n` tangents, so fewer fits are needed to fill the vector units as `n` grows. On the
-    2-core CPU a step of 16 fits cost about 4.2x a step of 2 fits at 3 parameters, and 16 fits
-    cost about what 16 single steps cost at 10 parameters (`benchmarks/README.md`).
+    carries `n` tangents, so fewer fits are needed to fill the vector units as `n` grows. With it
+    the 32-start batch on 2 CPU devices beat a loop of the same fits 3.0x, 2.5x and 2.5x at 3, 6
+    and 10 parameters (`benchmarks/README.md`).
     """
     if lanes is None:
         return None
@@ -107,7 +105,7 @@ def supports_queue(method) -> bool:
     )
 
 
-def queued_fits(method, problem_of, template, max_steps: int, *, lanes: int, devices=None):
+def queued_fits(method, problem_of, max_steps: int, *, lanes: int, devices=None):
     """`run((thetas, data)) -> BatchResult` of `(LocalOutput, cost)`: least-squares fits as a
     queue with `lanes` fits in flight per device (`bogie_jax.queued_batch`), the cost at every
     fit's end, and unsuccessful statuses flagged as failed."""
@@ -116,7 +114,7 @@ def queued_fits(method, problem_of, template, max_steps: int, *, lanes: int, dev
         return out, problem_of(x[1]).cost(out.theta)
 
     return queued_runner(
-        least_squares_member(method, problem_of, template, max_steps),
+        least_squares_member(method, problem_of, max_steps),
         lanes=lanes,
         devices=devices,
         post=cost,

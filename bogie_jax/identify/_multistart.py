@@ -1,9 +1,10 @@
 """Multistart: space-filling starts inside the bounds, all local fits as one vmapped batch.
 
-The fits run through `bogie_jax.batch.batch_runner` (every start vmapped in lock-step, in chunks,
-sharded over the devices). With `lanes=k`, LM, Gauss-Newton and Dogleg fits run as a queue
-instead (`bogie_jax.queued_batch`: k fits in flight per device, a lane whose fit has ended takes
-the next start; same steps and statuses, not yet shown faster, see `benchmarks/README.md`). A
+LM, Gauss-Newton and Dogleg fits run as a queue by default (`bogie_jax.queued_batch`: a few fits
+in flight per device, a lane whose fit has ended takes the next start), so no device waits for
+its slowest fit; `lanes=None`, and the other methods, run every start at once in lock-step
+through `bogie_jax.batch.batch_runner` (in chunks). Both spread the starts over the devices and
+take the same steps with the same statuses (`benchmarks/README.md` compares their speed). A
 failed start (non-finite output or unsuccessful solver status) is reported, never raised.
 Distinct minima are clustered on the host in box-normalised coordinates.
 """
@@ -208,7 +209,7 @@ def fit_multistart(
     design="lhs",
     starts=None,
     max_steps: int = 256,
-    lanes: int | str | None = None,
+    lanes: int | str | None = "auto",
     chunk_size: int | None = None,
     devices=None,
     cluster_tol: float = 1e-4,
@@ -223,10 +224,10 @@ def fit_multistart(
     - `n_starts`, `design` (`"lhs"`, `"sobol"` or an `AbstractDesign`), or explicit physical
       `starts` of shape `(N, n)` (then `n_starts`/`design` are ignored).
     - `method`, `max_steps`: as in `fit`; solves use `throw=False`.
-    - `lanes`: `None` (default): lock-step batch; an int or `"auto"` (see `queue_lanes`): LM,
-      Gauss-Newton and Dogleg fits as a queue with that many fits in flight per device.
-    - `chunk_size`: members vmapped together in a lock-step batch; `devices`: devices to shard
-      over (default all).
+    - `lanes`: LM, Gauss-Newton and Dogleg fits in flight per device of a queued batch: `"auto"`
+      (default, see `queue_lanes`) or an int; `None`: every start at once in lock-step.
+    - `chunk_size`: members vmapped together in a lock-step batch (not used by the queue, whose
+      `lanes` bound the memory); `devices`: devices to spread the starts over (default all).
     - `cluster_tol`: max-norm distance, as a fraction of each box width, within one minimum.
     - `throw`: raise if every start failed.
 
@@ -241,9 +242,7 @@ def fit_multistart(
     lanes = queue_lanes(lanes, thetas.shape[1])
     tic = time.perf_counter()
     if lanes is not None and supports_queue(method):
-        run = queued_fits(
-            method, lambda _: problem, (thetas[0], None), max_steps, lanes=lanes, devices=devices
-        )
+        run = queued_fits(method, lambda _: problem, max_steps, lanes=lanes, devices=devices)
         batch = jax.block_until_ready(run((thetas, None)))
     else:
         batch = run_batch(
