@@ -2,9 +2,10 @@
 
 `batch_runner(fn)` returns a compiled function that evaluates `fn` over the leading axis of a
 pytree batch: `vmap` over chunks of `chunk_size` members, `lax.map` over the chunks (bounded
-memory), and the members of each chunk spread over the devices of a `jax.sharding.Mesh` by
-`jax.shard_map` (on a CPU, expose several host devices with
-`XLA_FLAGS=--xla_force_host_platform_device_count=N` before importing JAX).
+memory), and the members of each chunk spread over the devices by `jax.sharding` (on a CPU,
+expose several host devices with `XLA_FLAGS=--xla_force_host_platform_device_count=N` before
+importing JAX). `per_device` runs each device's block on its own (`jax.shard_map`) for the
+queued runner's least-squares fits.
 A member whose output is non-finite, or flagged by `failure_fn`, is reported in
 `BatchResult.failed`; nothing raises because of one member (use `throw=False` in solves).
 """
@@ -69,7 +70,9 @@ def per_device(fn: Callable, devices, spec: PartitionSpec):
     synchronises the devices; on a 2-device CPU that made a sharded LM batch slower than the same
     batch on one device (`benchmarks/README.md`). Each device's block runs its own loops here.
     `check_vma=False` because `fn` uses no collectives and optimistix's Jacobian products
-    do not type-check under the varying-manual-axes check (jax 0.10.2).
+    do not type-check under the varying-manual-axes check (jax 0.10.2). `fn` must not call
+    lineax's own solvers, which reject right-hand sides inside `shard_map` (see `batch_runner`);
+    the `HouseholderQR` of the library's LM, Gauss-Newton and Dogleg works.
     """
     mesh = jax.sharding.Mesh(np.array(list(devices)), ("batch",))
     sharding = jax.sharding.NamedSharding(mesh, spec)
@@ -121,9 +124,13 @@ def batch_runner(
     def local(chunked):
         return jax.lax.map(jax.vmap(member), chunked)
 
-    # each device maps over its own chunks: (n_chunks, chunk, ...) of the (n_chunks, n_dev *
-    # chunk, ...) batch
-    sharded, sharding = per_device(local, devices, PartitionSpec(None, "batch"))
+    # The member axis of the jitted batch is sharded over the devices (GSPMD), not split by
+    # `per_device`: inside `shard_map`, lineax's own solvers (e.g. the QR of optimistix's
+    # default LM) reject their right-hand sides, whose types carry the mesh differently from
+    # the operator's (jax 0.10.2). The price: a vmapped `while_loop` waits for every device.
+    mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
+    sharding = jax.sharding.NamedSharding(mesh, PartitionSpec(None, "batch"))
+    sharded = jax.jit(local, in_shardings=sharding, out_shardings=sharding)
 
     def prepare(batch):
         n = _batch_size(batch)

@@ -8,11 +8,13 @@ import jax
 import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
+import optimistix as optx
 import pytest
 import scipy.stats
 
 from bogie_jax.identify import (
     BoxTransform,
+    LeastSquaresMethod,
     LeastSquaresProblem,
     SimulatedAnnealing,
     fit,
@@ -21,7 +23,8 @@ from bogie_jax.identify import (
     simulated_annealing,
 )
 from bogie_jax.identify._annealing import anneal_path, anneal_start, anneal_steps, anneal_theta
-from bogie_jax.identify._local import t_quantile
+from bogie_jax.identify._iteration import supports_queue
+from bogie_jax.identify._local import as_method, t_quantile
 from bogie_jax.identify._problem import status_name
 
 
@@ -209,6 +212,14 @@ def test_queued_multistart_equals_lock_step_batch(max_steps):
     assert "nonfinite_input" in names and "successful" in names
     if max_steps == 10:
         assert "nonlinear_max_steps_reached" in names
+
+
+def test_queue_takes_only_the_householder_gauss_newton_family():
+    """The queue runs each device on its own (`shard_map`), where lineax's own solvers fail: a
+    Gauss-Newton-family method with another linear solver, and BFGS, run lock-step instead."""
+    assert all(supports_queue(as_method(m)) for m in ("lm", "gauss-newton", "dogleg"))
+    assert not supports_queue(as_method("bfgs"))
+    assert not supports_queue(LeastSquaresMethod(optx.LevenbergMarquardt(1e-8, 1e-8)))
 
 
 # --- annealing and hybrid ----------------------------------------------------------------

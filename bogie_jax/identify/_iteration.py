@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import optimistix as optx
 
 from ..queued_batch import IterativeMember, queued_runner
+from ._householder import HouseholderQR
 from ._local import LeastSquaresMethod, LocalOutput, _code
 from ._problem import SUCCESS
 
@@ -99,10 +100,15 @@ def queue_lanes(lanes, n_params: int) -> int | None:
 
 
 def supports_queue(method) -> bool:
-    """Whether `method` can run as a queued batch (optimistix's Gauss-Newton family)."""
-    return isinstance(method, LeastSquaresMethod) and isinstance(
-        method.solver, optx.AbstractGaussNewton
-    )
+    """Whether `method` can run as a queued batch: optimistix's Gauss-Newton family with the
+    library's `HouseholderQR` steps (the queue runs each device on its own with `shard_map`,
+    where lineax's own solvers fail; other methods run lock-step)."""
+    if not (
+        isinstance(method, LeastSquaresMethod)
+        and isinstance(method.solver, optx.AbstractGaussNewton)
+    ):
+        return False
+    return isinstance(getattr(method.solver.descent, "linear_solver", None), HouseholderQR)
 
 
 def queued_fits(method, problem_of, max_steps: int, *, lanes: int, devices=None):
