@@ -8,9 +8,10 @@ member of its device's queue. The batch then costs about the sum of its members'
 by the lanes, plus one tail; members need not take equal numbers of steps.
 
 A member is an `IterativeMember`: `init(x) -> carry`, `step(carry) -> carry`,
-`done(carry) -> bool` and `output(carry) -> pytree`. Members are spread over the devices as in
-`batch_runner` (each device runs the queue of its block of members, `jax.shard_map`); the outputs
-come back in input order with the same per-member failure flags.
+`done(carry) -> bool` and `output(carry) -> pytree`. The members are split over the devices in
+contiguous blocks and each device runs the queue of its block on its own (`batch.per_device`,
+`jax.shard_map`: no device waits for another; a member must not call lineax's own solvers, see
+there); the outputs come back in input order with per-member failure flags as in `batch_runner`.
 """
 
 import math
