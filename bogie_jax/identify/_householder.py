@@ -34,8 +34,8 @@ class HouseholderQR(lx.AbstractLinearSolver):
     def compute(self, state, vector, options: dict[str, Any]):
         del options
         matrix, packed = state
-        # not `lxi.ravel_vector`: its structure check also compares the varying-manual-axes
-        # annotation, which differs between the operator and the vector inside `shard_map`
+        # not `lxi.ravel_vector`: its structure check also compares the mesh annotation of the
+        # shape structs, which differs between the operator and the vector inside `shard_map`
         leaves = jax.tree.leaves(vector)
         dtype = jnp.result_type(*leaves)
         b = jnp.concatenate([x.astype(dtype).reshape(-1) for x in leaves])

@@ -4,7 +4,8 @@ LM, Gauss-Newton and Dogleg fits run as a queue by default (`bogie_jax.queued_ba
 in flight per device, a lane whose fit has ended takes the next start), so no device waits for
 its slowest fit; `lanes=None`, and the other methods, run every start at once in lock-step
 through `bogie_jax.batch.batch_runner` (in chunks). Both spread the starts over the devices and
-take the same steps with the same statuses (`benchmarks/README.md` compares their speed). A
+run optimistix's own iteration, so they agree up to rounding (vmaps of different widths can
+round differently; `benchmarks/README.md` compares their speed). A
 failed start (non-finite output or unsuccessful solver status) is reported, never raised.
 Distinct minima are clustered on the host in box-normalised coordinates.
 """
