@@ -495,8 +495,8 @@ def main(argv=None):
     p.add_argument(
         "--sa-min-step",
         type=float,
-        default=1e-3,
-        help="smallest annealing proposal scale (unconstrained coordinates)",
+        default=1e-6,
+        help="smallest annealing proposal scale (fraction of the bounds' width)",
     )
     p.add_argument("--hybrid-chains", type=int, default=4)
     p.add_argument("--hybrid-iter", type=int, default=200)
@@ -514,9 +514,15 @@ def main(argv=None):
         action="store_true",
         help="solve nothing: rebuild the tables of results/NAME.json from its per-trial records",
     )
+    p.add_argument(
+        "--merge",
+        default=None,
+        help="solve nothing: merge the per-trial records of the runs results/A.json,B.json,... "
+        "(comma-separated names; e.g. methods run separately on the same trials) into NAME",
+    )
     args = p.parse_args(argv)
-    if args.from_json:
-        return report_from_json(args.name)
+    if args.from_json or args.merge:
+        return report_from_json(args.name, args.merge and args.merge.split(","))
     args.methods = tuple(m.strip() for m in args.methods.split(","))
     if args.sa_piece < 1 or args.sa_iter % min(args.sa_piece, args.sa_iter):
         p.error(
@@ -569,29 +575,64 @@ def main(argv=None):
             write()
 
 
-def report_from_json(name):
-    """Re-aggregate a (possibly interrupted) run from its saved per-trial records."""
+def report_from_json(name, sources=None):
+    """Re-aggregate saved per-trial records into `results/NAME.{json,md}`: those of `NAME`
+    itself (a possibly interrupted run), or merged from the runs `sources`. Trial `t` of a
+    scenario and noise level has the same noise and start design in every run (its key is
+    `1000 t + 7`), so runs of different methods merge into the trials of one table."""
     import json
 
     from benchmarks._common import RESULTS
 
-    saved = json.loads((RESULTS / f"{name}.json").read_text())
+    runs = [json.loads((RESULTS / f"{src}.json").read_text()) for src in sources or [name]]
+    merged = {}
+    for src, saved in zip(sources or [name], runs):
+        for t in saved["trials"]:
+            key = (t["scenario"], t["noise_percent"], t["trial"])
+            methods = merged.setdefault(key, {})
+            twice = set(methods) & set(t["methods"])
+            if twice:
+                raise SystemExit(f"{src}: {key} already has {sorted(twice)} from another run")
+            methods.update(t["methods"])
     blocks = {}
-    for t in saved["trials"]:
-        mark_global(t["methods"])
-        key = (t["scenario"], _n_params(t["scenario"]), f"{t['noise_percent']}%")
-        blocks.setdefault(key, []).append(t["methods"])
+    for (sc, noise, _), methods in sorted(merged.items(), key=lambda kv: kv[0][2]):
+        mark_global(methods)
+        blocks.setdefault((sc, _n_params(sc), f"{noise}%"), []).append(methods)
     results = {k: aggregate(v) for k, v in blocks.items()}
     loops = {
         (lp["scenario"], _n_params(lp["scenario"]), lp["noise"]): lp
+        for saved in runs
         for lp in saved.get("loop_vs_batch", [])
     }
-    covers = saved.get("coverage", {})
+    covers = {k: v for saved in runs for k, v in saved.get("coverage", {}).items()}
     records = [
         dict(scenario=k[0], n_params=k[1], noise=k[2], methods=v) for k, v in results.items()
     ]
-    extra = {k: v for k, v in saved.items() if k != "records"}  # keeps the run's environment
-    write_outputs(name, records, markdown(results, loops, covers, saved["settings"]), extra=extra)
+    if sources is None:
+        extra = {k: v for k, v in runs[0].items() if k != "records"}  # keeps the run's environment
+        settings = runs[0]["settings"]
+    else:
+        # the settings all runs share; each run's own are kept under `source_settings`
+        first = runs[0]["settings"]
+        settings = {k: v for k, v in first.items() if all(r["settings"].get(k) == v for r in runs)}
+        settings["merged_from"] = list(sources)
+        methods = [m for saved in runs for m in saved["settings"]["methods"]]
+        settings["methods"] = tuple(dict.fromkeys(methods))
+        for saved in runs:  # the annealing budget comes from the run that annealed
+            if "annealing" in saved["settings"]["methods"]:
+                settings["sa_iter"] = saved["settings"]["sa_iter"]
+        trials = [
+            dict(scenario=k[0], noise_percent=k[1], trial=k[2], methods=v)
+            for k, v in merged.items()
+        ]
+        extra = dict(
+            settings=settings,
+            source_settings={src: saved["settings"] for src, saved in zip(sources, runs)},
+            trials=trials,
+            loop_vs_batch=[lp for saved in runs for lp in saved.get("loop_vs_batch", [])],
+            coverage=covers,
+        )
+    write_outputs(name, records, markdown(results, loops, covers, settings), extra=extra)
     return 0
 
 

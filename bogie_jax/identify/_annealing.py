@@ -1,8 +1,15 @@
 """Simulated annealing (paper section 5.4) and the hybrid: annealing chains, then local fits.
 
-Annealing works in the unconstrained coordinates `theta`: Gaussian proposals whose scale
-shrinks with the temperature, Metropolis acceptance, geometric cooling, all in one `lax.scan`
-(a fixed evaluation budget, counted exactly: `n_iter + 1` cost evaluations per chain).
+Annealing keeps its points in the unconstrained coordinates `theta` but proposes its moves in
+the physical box: a Gaussian step in the fraction of the bounds `u = (p - lower) / (upper -
+lower)`, reflected at the bounds, for a bounded parameter, and a Gaussian step in `log p` for a
+log-scale one (no upper bound). The step's scale shrinks with the temperature; Metropolis
+acceptance, geometric cooling, all in one `lax.scan` (a fixed evaluation budget, counted exactly:
+`n_iter + 1` cost evaluations per chain).
+
+Why not a random walk in `theta` itself: the logistic map is flat far from the box centre, so a
+hot chain drifts to large `|theta|` (the bounds) and, once cold, its small steps no longer change
+the parameters; it cannot come back. A chain of 52 000 proposals did exactly that.
 """
 
 import time
@@ -24,14 +31,15 @@ class SimulatedAnnealing(eqx.Module):
     - `n_iter`: proposals (cost evaluations) per chain.
     - `initial_temperature`: in cost units; `None` = the cost at the start.
     - `final_ratio`: final / initial temperature (geometric cooling).
-    - `step_size`, `min_step`: proposal scale in `theta` at `T0`, shrinking as `sqrt(T / T0)`.
+    - `step_size`, `min_step`: proposal scale at `T0`, shrinking as `sqrt(T / T0)`; in fractions
+      of the box width for a bounded parameter, in `log p` for a log-scale one.
     """
 
     n_iter: int = eqx.field(static=True, default=2000)
     initial_temperature: float | None = None
     final_ratio: float = 1e-8
     step_size: float = 1.0
-    min_step: float = 1e-3
+    min_step: float = 1e-6
 
 
 class AnnealingResult(eqx.Module):
@@ -61,6 +69,24 @@ def _chain_cost(problem, theta):
     return jnp.nan_to_num(problem.cost(theta), nan=jnp.inf)
 
 
+def _propose(transform, theta, scale, key):
+    """A move from `theta`: reflected Gaussian step of `scale` box widths for a bounded
+    parameter, Gaussian step of `scale` in `log p` for one without upper bound (both symmetric,
+    as Metropolis acceptance assumes)."""
+    lower, upper = jnp.asarray(transform.lower), jnp.asarray(transform.upper)
+    boxed = jnp.isfinite(lower) & jnp.isfinite(upper)
+    span = jnp.where(boxed, upper - lower, 1.0)
+    base = jnp.where(boxed, lower, 0.0)
+    p = transform.to_physical(theta)
+    step = scale * jr.normal(key, theta.shape, theta.dtype)
+    u = jnp.mod((p - base) / span + step, 2.0)
+    u = jnp.where(u > 1.0, 2.0 - u, u)  # reflection at 0 and 1
+    eps = jnp.finfo(theta.dtype).eps
+    u = jnp.clip(u, eps, 1.0 - eps)  # strictly inside: finite theta
+    moved = jnp.where(boxed, base + span * u, p * jnp.exp(jnp.where(boxed, 0.0, step)))
+    return transform.to_theta(moved)
+
+
 def anneal_start(problem, theta0, schedule: SimulatedAnnealing) -> AnnealingState:
     """A chain at `theta0` before its first proposal (one cost evaluation)."""
     f0 = _chain_cost(problem, theta0)
@@ -78,9 +104,9 @@ def anneal_steps(
     """`length` (static) further proposals of the chain of `key`: `(state, path)`, `path` the
     best point after every proposal, shape `(length, n)` (`None` without `keep_path`).
 
-    Steps run in pieces give the chain run in one piece (proposal `k` always uses the `k`-th of
-    `jr.split(key, schedule.n_iter)`), so a long chain can be run and saved piece by piece;
-    `state.k + length` must not exceed `schedule.n_iter`.
+    Steps run in pieces give the chain run in one piece, up to rounding (proposal `k` always
+    uses the `k`-th of `jr.split(key, schedule.n_iter)`), so a long chain can be run and saved
+    piece by piece; `state.k + length` must not exceed `schedule.n_iter`.
     """
     n = schedule.n_iter
     if not 1 <= length <= n:
@@ -93,7 +119,7 @@ def anneal_steps(
             schedule.step_size * jnp.sqrt(schedule.final_ratio**frac), schedule.min_step
         )
         k_prop, k_acc = jr.split(key)
-        trial = st.theta + scale * jr.normal(k_prop, st.theta.shape, st.theta.dtype)
+        trial = _propose(problem.transform, st.theta, scale, k_prop)
         f_trial = _chain_cost(problem, trial)
         accept = (f_trial < st.cost) | (jr.uniform(k_acc) < jnp.exp(-(f_trial - st.cost) / temp))
         accept = accept & jnp.isfinite(f_trial)
