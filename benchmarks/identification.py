@@ -456,7 +456,7 @@ def markdown(results, loops, covers, settings):
             "| --- | --- | --- | --- | --- |",
             *sa_rows,
         ]
-    share_rows = _start_share_lines(results, settings["starts"])
+    share_rows = _start_share_lines(results, settings["starts"]) if "starts" in settings else []
     if share_rows:
         lines += [
             "",
