@@ -9,7 +9,7 @@ design per trial) and method:
 - success: every selected parameter within 1 % of the truth (noise-free), or every truth inside
   its reported 95 % interval (noisy; for simulated annealing the interval is computed at its
   best point by the same Gauss-Newton statistics);
-- global: the final cost within 1e-3 (in noise variances) + 1e-6 relative of the lowest cost
+- global: the final cost within 1e-2 (in noise variances) + 1e-6 relative of the lowest cost
   any method reached in that trial;
 - forward solves (cost/residual evaluations; for the least-squares methods each also carries the
   forward-mode Jacobian) and wall time (after compilation).
@@ -227,9 +227,13 @@ def evals_to_accuracy(problem, path, truth, done=0):
     return out
 
 
-# Costs are in noise variances (residuals weighted by 1/sigma): two fits whose costs differ by
-# less than this reached the same minimum as far as the data can tell.
-GLOBAL_TOL = 1e-3
+# Costs are in noise variances (residuals weighted by 1/sigma). Two fits whose costs differ by
+# less than this reached the same minimum as far as the solves can tell: with 2 % noise and PID
+# rtol 1e-8 the cost is rough at the 1e-3 level (along a segment through the minimum of a
+# `primary3` trial it jumped by up to 3.3e-3, while at rtol 1e-11 it was smooth), so a method that
+# samples many points (annealing, pattern search) can land on such a jump, below the minimum.
+# Statistically these differences are nothing: one parameter's 95 % interval ends 1.92 above.
+GLOBAL_TOL = 1e-2
 
 
 def mark_global(out):
@@ -403,9 +407,9 @@ def markdown(results, loops, covers, settings):
         "Settings: " + ", ".join(f"{k}={v}" for k, v in settings.items()),
         "",
         "Success: all parameters within 1 % (noise-free) / truth inside every 95 % interval (2 % "
-        "noise). Global: final cost within 1e-3 (noise variances) of the lowest cost any method "
-        "reached in the trial. A run writes its tables after every trial; the trials column says "
-        "how many finished. "
+        f"noise). Global: final cost within {GLOBAL_TOL:g} (noise variances) of the lowest cost "
+        "any method reached in the trial. A run writes its tables after every trial; the trials "
+        "column says how many finished. "
         "Forward solves (residual or cost evaluations; each least-squares step or BFGS gradient "
         "also takes a forward-mode Jacobian of n tangents), solve equivalents (forward solves + "
         "n x Jacobians) and wall time: medians per trial (wall time after compilation).",
