@@ -4,5 +4,9 @@ from ._measurement import (
     load_measurement as load_measurement,
     save_measurement as save_measurement,
 )
-from ._track_csv import load_track_csv as load_track_csv, save_track_csv as save_track_csv
+from ._track_csv import (
+    load_track as load_track,
+    load_track_csv as load_track_csv,
+    save_track_csv as save_track_csv,
+)
 from ._trajectory import save_trajectory as save_trajectory

@@ -22,7 +22,7 @@ import os
 
 import numpy as np
 
-from ..track import TrackIrregularity, TrackSampleError
+from ..track import TrackIrregularity, TrackReference, TrackSampleError
 
 
 HEADER = ("distance_m", "alignment_m", "vertical_m", "cross_level_rad")
@@ -99,3 +99,12 @@ def _parse_row(name: str, number: int, cells: list[str]) -> list[float]:
             )
         row.append(value)
     return row
+
+
+def load_track(reference: TrackReference) -> TrackIrregularity:
+    """The track of `reference`: its CSV file, or the synthetic track it describes."""
+    if reference.file is None:
+        return reference.build()
+    if not os.path.isfile(reference.file):
+        raise ValueError(f"`track` file {reference.file!r} does not exist")
+    return load_track_csv(reference.file)

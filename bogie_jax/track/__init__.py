@@ -18,3 +18,8 @@ from ._synthesis import (
     band_variance as band_variance,
     synthesise_track as synthesise_track,
 )
+from ._reference import (
+    SPECTRA as SPECTRA,
+    TrackReference as TrackReference,
+    spectrum_from_name as spectrum_from_name,
+)
