@@ -1,0 +1,156 @@
+"""The package's shape: one-way imports along the layer order, no import cycle, no private names
+used across packages by tests and benchmarks, and no oversized file without a stated reason.
+
+Imports are read from the source with `ast` (function-body imports included), so a deferred
+import that dodges a cycle at run time is still an edge here.
+"""
+
+import ast
+import pathlib
+
+import pytest
+
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "bogie_jax"
+
+# params -> contact/track -> model -> simulate -> measure -> cost
+#   -> gradients / identify / sensitivity -> monitor -> io / plot / cli  (README, issue "One house")
+LAYERS = {
+    "_precision": 0,
+    "_validation": 0,
+    "params": 0,
+    "contact": 1,
+    "track": 1,
+    "model": 2,
+    "simulate": 3,
+    "_solve_settings": 3,
+    "measure": 4,
+    "cost": 5,
+    "batch": 5,  # generic batch runners under the identification layer
+    "queued_batch": 5,
+    "gradients": 6,
+    "identify": 6,
+    "sensitivity": 6,
+    "monitor": 7,
+    "io": 8,
+    "plot": 8,
+    "cli": 9,
+    "__init__": 10,  # the top-level re-exports
+}
+MAX_LINES = 400
+
+
+def _module_name(path: pathlib.Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imported_modules(path: pathlib.Path, text: str | None = None):
+    """`(module, names, line)` of each `bogie_jax` import in `path` (its source, or `text`)."""
+    here = _module_name(path).split(".")
+    package = here if path.name == "__init__.py" else here[:-1]
+    for node in ast.walk(ast.parse(path.read_text() if text is None else text)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.startswith("bogie_jax"):
+                yield target, [a.name for a in node.names], node.lineno
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("bogie_jax"):
+                    yield alias.name, [], node.lineno
+
+
+def _top(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _package_files():
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def test_every_top_level_module_has_a_layer():
+    tops = {_top(_module_name(p)) for p in _package_files()}
+    assert not tops - set(LAYERS), f"modules without a layer in LAYERS: {sorted(tops - set(LAYERS))}"
+
+
+def test_imports_follow_the_layer_order():
+    wrong = []
+    for path in _package_files():
+        source = _top(_module_name(path))
+        for target, _, line in _imported_modules(path):
+            dest = _top(target)
+            if dest != source and LAYERS.get(dest, -1) > LAYERS[source]:
+                wrong.append(f"{path.relative_to(ROOT)}:{line} imports {target} (layer {dest})")
+    assert not wrong, "imports against the layer order:\n" + "\n".join(wrong)
+
+
+def test_no_import_cycle_between_top_level_modules():
+    graph: dict[str, set[str]] = {}
+    for path in _package_files():
+        source = _top(_module_name(path))
+        for target, _, _ in _imported_modules(path):
+            if _top(target) != source:
+                graph.setdefault(source, set()).add(_top(target))
+    cycles = []
+
+    def visit(node, stack):
+        for nxt in sorted(graph.get(node, ())):
+            if nxt in stack:
+                cycles.append(" -> ".join([*stack[stack.index(nxt) :], nxt]))
+            elif len(stack) < len(LAYERS):
+                visit(nxt, [*stack, nxt])
+
+    for start in sorted(graph):
+        visit(start, [start])
+    assert not cycles, "import cycles:\n" + "\n".join(sorted(set(cycles)))
+
+
+def test_the_checker_resolves_relative_imports():
+    """A `model` module importing `..cost` is an edge model -> cost, against the order."""
+    fake = PACKAGE / "model" / "_x.py"
+    edges = list(_imported_modules(fake, "def f():\n    from ..cost import Objective\n"))
+    assert edges == [("bogie_jax.cost", ["Objective"], 2)]
+    assert LAYERS[_top(edges[0][0])] > LAYERS[_top(_module_name(fake))]
+
+
+def _private_uses(path: pathlib.Path):
+    """`bogie_jax` names used by `path` (a test or benchmark) that are private to a package."""
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("bogie_jax"):
+            modules = node.module.split(".")
+            private = [m for m in modules if m.startswith("_")]
+            names = [a.name for a in node.names if a.name.startswith("_")]
+            if private or names:
+                yield f"{path.relative_to(ROOT)}:{node.lineno} from {node.module} import " + (
+                    ", ".join(a.name for a in node.names)
+                )
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("bogie_jax") and "._" in alias.name:
+                    yield f"{path.relative_to(ROOT)}:{node.lineno} import {alias.name}"
+
+
+@pytest.mark.parametrize("folder", ["tests", "benchmarks"])
+def test_tests_and_benchmarks_use_only_public_names(folder):
+    files = [p for p in sorted((ROOT / folder).rglob("*.py")) if p.name != "test_architecture.py"]
+    uses = [u for p in files for u in _private_uses(p)]
+    assert not uses, "private names of bogie_jax used:\n" + "\n".join(uses)
+
+
+def test_no_file_over_400_lines_without_a_reason():
+    """A longer file says why in a comment among its first lines (`# long: ...`)."""
+    files = [*_package_files(), *(ROOT / "tests").rglob("*.py"), *(ROOT / "benchmarks").glob("*.py")]
+    long = []
+    for path in files:
+        lines = path.read_text().splitlines()
+        if len(lines) > MAX_LINES and not any(line.startswith("# long:") for line in lines[:15]):
+            long.append(f"{path.relative_to(ROOT)} ({len(lines)} lines)")
+    assert not long, f"files over {MAX_LINES} lines without a '# long:' reason:\n" + "\n".join(long)
