@@ -6,6 +6,11 @@ from ._annealing import (
     fit_hybrid as fit_hybrid,
     simulated_annealing as simulated_annealing,
 )
+from ._chunked import (
+    ChunkedMultistart as ChunkedMultistart,
+    ChunkProgress as ChunkProgress,
+    fit_multistart_chunked as fit_multistart_chunked,
+)
 from ._jacobian import JacobianResiduals as JacobianResiduals
 from ._local import (
     LOCAL_METHODS as LOCAL_METHODS,
