@@ -1,0 +1,10 @@
+"""Condition monitoring: verdicts per suspension element and trends over dated runs."""
+
+from ._trend import Trend as Trend, trend as trend
+from ._verdict import (
+    VERDICTS as VERDICTS,
+    ToleranceBand as ToleranceBand,
+    Verdict as Verdict,
+    decision_z as decision_z,
+    judge as judge,
+)

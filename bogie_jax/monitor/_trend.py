@@ -1,0 +1,195 @@
+"""Trends of one element's estimates over a series of dated runs, with a drift flag.
+
+Weighted least squares on the estimates p_k at times t_k with their standard errors s_k
+(Bevington & Robinson, Data Reduction and Error Analysis, 3rd ed., ch. 6):
+
+    p_k = a + b (t_k - t_w) + e_k,   weights w_k = 1 / s_k^2,   t_w = sum w t / sum w,
+    b = sum w (t - t_w) p / S_tt,    se(b) = 1 / sqrt(S_tt),   S_tt = sum w (t - t_w)^2.
+
+Drift flag: |b| / se(b) > z_{1 - alpha/2} (two-sided test of "no drift" at false-alarm rate
+alpha). When the scatter about the line exceeds what the standard errors allow (Birge ratio
+R^2 = chi^2 / (n - 2) > 1), se(b) is multiplied by R and the quantile is Student's t with n - 2
+degrees of freedom, so estimates whose errors were underestimated do not raise false alarms.
+"""
+
+import dataclasses
+import math
+from statistics import NormalDist
+
+import numpy as np
+
+from ._verdict import check_false_alarm_rate, ToleranceBand
+
+
+SECONDS_PER_DAY = 86_400.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Trend:
+    """The trend of one element.
+
+    - `name`; `times` [days since the first run] and `dates` (ISO strings);
+    - `slope` [unit/day] and `slope_std_error`; `level` [unit] at the last run and its error;
+    - `birge_ratio`: sqrt(chi^2 / (n - 2)) (about 1 when the standard errors explain the
+      scatter; `nan` for two runs);
+    - `drift`: the flag of the module's test; `p_value` of that test;
+    - `days_to_band_edge`: days after the last run until the line leaves the healthy band
+      (`None` without a band, without drift or when it moves away from the edges).
+    """
+
+    name: str
+    dates: tuple[str, ...]
+    times: np.ndarray
+    estimates: np.ndarray
+    std_errors: np.ndarray
+    slope: float
+    slope_std_error: float
+    level: float
+    level_std_error: float
+    birge_ratio: float
+    drift: bool
+    p_value: float
+    days_to_band_edge: float | None = None
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "dates": list(self.dates),
+            "estimates": [float(x) for x in self.estimates],
+            "std_errors": [float(x) for x in self.std_errors],
+            "slope_per_day": self.slope,
+            "slope_std_error": self.slope_std_error,
+            "level": self.level,
+            "level_std_error": self.level_std_error,
+            "birge_ratio": self.birge_ratio,
+            "drift": self.drift,
+            "p_value": self.p_value,
+            "days_to_band_edge": self.days_to_band_edge,
+        }
+
+
+def as_days(dates) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Days since the first of `dates` (ISO strings, `datetime64` or `datetime`), strictly
+    increasing; raises `ValueError` naming the first unsorted or duplicate date."""
+    stamps = np.array([np.datetime64(d, "s") for d in dates])
+    if stamps.size == 0:
+        raise ValueError("`dates` is empty: a trend needs at least two dated results")
+    steps = np.diff(stamps).astype(float)
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        k = int(bad[0])
+        kind = "duplicate" if steps[k] == 0 else "unsorted"
+        raise ValueError(
+            f"`dates` must be strictly increasing: {kind} date {stamps[k + 1]} after {stamps[k]} "
+            f"(results {k} and {k + 1})"
+        )
+    days = (stamps - stamps[0]).astype(float) / SECONDS_PER_DAY
+    return days, tuple(str(s) for s in stamps)
+
+
+def trend(
+    name: str,
+    dates,
+    estimates,
+    std_errors,
+    *,
+    false_alarm_rate: float = 0.05,
+    band: ToleranceBand | None = None,
+) -> Trend:
+    """The weighted-regression trend of one element over dated runs (see module docstring).
+
+    **Raises:** `ValueError` for fewer than two runs, unsorted or duplicate dates, lengths that
+    differ, or standard errors that are not finite and > 0.
+    """
+    alpha = check_false_alarm_rate(false_alarm_rate)
+    t, iso = as_days(dates)
+    p = np.asarray(estimates, dtype=float)
+    s = np.asarray(std_errors, dtype=float)
+    if not (p.shape == s.shape == t.shape):
+        raise ValueError(
+            f"`dates`, `estimates` and `std_errors` need one entry per run; got lengths "
+            f"{t.size}, {p.size}, {s.size}"
+        )
+    if t.size < 2:
+        raise ValueError(f"a trend needs at least two dated results, got {t.size}")
+    if not np.all(np.isfinite(s) & (s > 0)) or not np.all(np.isfinite(p)):
+        raise ValueError(f"`estimates` must be finite and `std_errors` finite and > 0: {s!r}")
+    w = 1.0 / s**2
+    t_w = np.sum(w * t) / np.sum(w)
+    s_tt = np.sum(w * (t - t_w) ** 2)
+    slope = float(np.sum(w * (t - t_w) * p) / s_tt)
+    mean = float(np.sum(w * p) / np.sum(w))
+    dof = t.size - 2
+    chi2 = float(np.sum(w * (p - mean - slope * (t - t_w)) ** 2))
+    birge = math.sqrt(chi2 / dof) if dof > 0 else math.nan
+    inflate = birge if dof > 0 and birge > 1 else 1.0
+    se_slope = inflate / math.sqrt(s_tt)
+    dt_last = t[-1] - t_w
+    level = mean + slope * dt_last
+    se_level = inflate * math.sqrt(1 / np.sum(w) + dt_last**2 / s_tt)
+    statistic = abs(slope) / se_slope
+    p_value = _two_sided_p(statistic, dof if inflate > 1 else None)
+    drift = bool(p_value < alpha)
+    return Trend(
+        name=name,
+        dates=iso,
+        times=t,
+        estimates=p,
+        std_errors=s,
+        slope=slope,
+        slope_std_error=se_slope,
+        level=level,
+        level_std_error=se_level,
+        birge_ratio=birge,
+        drift=drift,
+        p_value=p_value,
+        days_to_band_edge=_days_to_edge(level, slope, band) if drift else None,
+    )
+
+
+def _two_sided_p(statistic: float, dof: int | None) -> float:
+    """P(|X| > statistic) for X standard normal (`dof` None) or Student's t with `dof`."""
+    if dof is None:
+        return 2 * (1 - NormalDist().cdf(statistic))
+    # Student's t tail by the regularised incomplete beta function, I_x(dof/2, 1/2)
+    # with x = dof / (dof + t^2) (Abramowitz & Stegun 26.7.1 and 26.5.27)
+    return _regularised_beta(dof / (dof + statistic**2), dof / 2, 0.5)
+
+
+def _regularised_beta(x: float, a: float, b: float) -> float:
+    """I_x(a, b) by its continued fraction (Numerical Recipes, 3rd ed., 6.4), 0 <= x <= 1."""
+    if x <= 0:
+        return 0.0
+    if x >= 1:
+        return 1.0
+    log_front = (
+        math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x) + b * math.log1p(-x)
+    )
+    if x > (a + 1) / (a + b + 2):
+        return 1.0 - _regularised_beta(1 - x, b, a)
+    # modified Lentz evaluation of the continued fraction
+    tiny, c, d = 1e-300, 1.0, 1.0 - (a + b) * x / (a + 1)
+    d = 1 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, 300):
+        for numerator in (
+            m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m)),
+            -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1)),
+        ):
+            d = 1 + numerator * d
+            d = 1 / (d if abs(d) > tiny else tiny)
+            c = 1 + numerator / c
+            c = c if abs(c) > tiny else tiny
+            h *= d * c
+        if abs(d * c - 1) < 1e-15:
+            break
+    return math.exp(log_front) * h / a
+
+
+def _days_to_edge(level: float, slope: float, band: ToleranceBand | None) -> float | None:
+    if band is None or slope == 0:
+        return None
+    lo, hi = band.healthy
+    edge = lo if slope < 0 else hi
+    days = (edge - level) / slope
+    return float(max(days, 0.0))

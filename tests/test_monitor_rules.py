@@ -1,0 +1,138 @@
+"""The verdict rule and the drift test: error rates from repeated random trials (counts stated
+in each test), the t tail against scipy, and bad input."""
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from bogie_jax.monitor import decision_z, judge, ToleranceBand, trend
+from bogie_jax.monitor._trend import _two_sided_p
+
+
+BAND = ToleranceBand.relative(400e3, 0.2, unit="N s/m")  # healthy 320-480 kN s/m, failed < 100
+
+
+def test_verdict_categories():
+    z = decision_z(0.05, 1)
+    assert judge("d", 400e3, 10e3, BAND, z=z).verdict == "healthy"
+    assert judge("d", 200e3, 10e3, BAND, z=z).verdict == "degraded"
+    assert judge("d", 20e3, 10e3, BAND, z=z).verdict == "failed"
+    assert judge("d", 300e3, 20e3, BAND, z=z).verdict == "healthy"  # interval reaches the band
+    assert judge("d", 400e3, 60e3, BAND, z=z).verdict == "not identifiable"  # wider than band
+    assert judge("d", 400e3, 10e3, BAND, z=z, identifiable=False).verdict == "not identifiable"
+    v = judge("d", 200e3, 10e3, BAND, z=z)
+    assert v.ci95 == pytest.approx((200e3 - 1.959964 * 10e3, 200e3 + 1.959964 * 10e3))
+    assert v.to_dict()["tolerance_band"]["healthy"] == [320e3, 480e3]
+
+
+def test_false_alarm_rate_of_a_healthy_bogie_is_at_most_alpha():
+    """20 000 simulated healthy bogies of 4 elements each, every true value on the edge of
+    its band (the worst case), estimates with their correct standard errors."""
+    rng = np.random.default_rng(0)
+    alpha, m, trials = 0.05, 4, 20_000
+    z = decision_z(alpha, m)
+    truth = np.array([320e3, 480e3, 320e3, 480e3])
+    se = np.array([20e3, 15e3, 10e3, 25e3])
+    estimates = truth + se * rng.standard_normal((trials, m))
+    alarms = np.array(
+        [
+            any(judge("e", e, s, BAND, z=z).verdict != "healthy" for e, s in zip(row, se))
+            for row in estimates
+        ]
+    )
+    rate = alarms.mean()
+    # exact rate at the edges: m * alpha / (2 m) = alpha / 2; binomial 4-sigma margin
+    assert rate <= alpha / 2 + 4 * np.sqrt(alpha / 2 / trials)
+    assert rate >= alpha / 2 - 4 * np.sqrt(alpha / 2 / trials)
+
+
+def test_a_halved_damper_is_found_when_its_error_is_small():
+    """2 000 trials of a damper at 50 % with a 3 % standard error: detected in all of them."""
+    rng = np.random.default_rng(1)
+    z = decision_z(0.05, 4)
+    found = [
+        judge("d", 200e3 + 6e3 * rng.standard_normal(), 6e3, BAND, z=z).verdict != "healthy"
+        for _ in range(2000)
+    ]
+    assert all(found)
+
+
+def test_zero_width_band_and_bad_alpha_are_refused():
+    with pytest.raises(ValueError, match="zero width"):
+        ToleranceBand((1.0, 1.0))
+    with pytest.raises(ValueError, match="false_alarm_rate"):
+        decision_z(0.0, 3)
+    with pytest.raises(ValueError, match="failed_below"):
+        ToleranceBand((1.0, 2.0), failed_below=1.5)
+
+
+@pytest.mark.parametrize("dof", [1, 3, 7, 30])
+def test_student_t_tail_matches_scipy(dof):
+    for t in (0.1, 1.0, 2.5, 8.0):
+        assert _two_sided_p(t, dof) == pytest.approx(2 * scipy.stats.t.sf(t, dof), rel=1e-9)
+    assert _two_sided_p(1.96, None) == pytest.approx(0.05, abs=1e-4)
+
+
+def _series(rng, n, slope, scatter_factor=1.0):
+    days = np.cumsum(rng.uniform(20, 40, n))
+    se = rng.uniform(5e3, 15e3, n)
+    values = 400e3 + slope * days + scatter_factor * se * rng.standard_normal(n)
+    dates = np.datetime64("2026-01-01") + days.astype("timedelta64[D]")
+    return dates, values, se
+
+
+def test_drift_false_alarm_rate_without_drift():
+    """4 000 series of 8 runs without drift: the flag rate stays at or below alpha (the
+    Birge-ratio inflation makes the test conservative when the errors are right)."""
+    rng = np.random.default_rng(2)
+    trials, alpha = 4000, 0.05
+    flags = [
+        trend("c", *_series(rng, 8, 0.0)[:3], false_alarm_rate=alpha).drift for _ in range(trials)
+    ]
+    assert np.mean(flags) <= alpha + 3 * np.sqrt(alpha / trials)
+
+
+def test_drift_false_alarm_rate_when_errors_are_underestimated():
+    """4 000 series whose scatter is twice their stated standard errors: the inflation keeps
+    the false-alarm rate near alpha (without it, it would be about 0.33)."""
+    rng = np.random.default_rng(3)
+    trials, alpha = 4000, 0.05
+    flags = [
+        trend("c", *_series(rng, 8, 0.0, scatter_factor=2.0), false_alarm_rate=alpha).drift
+        for _ in range(trials)
+    ]
+    assert np.mean(flags) <= alpha + 4 * np.sqrt(alpha / trials)
+
+
+def test_drift_is_found_and_projected_to_the_band_edge():
+    """500 series losing 300 N s/m a day over 8 runs (about 70 kN s/m in total): flagged in at
+    least 95 % of them; the projected crossing of the lower band edge is about right."""
+    rng = np.random.default_rng(4)
+    results = [trend("c", *_series(rng, 8, -300.0), band=BAND) for _ in range(500)]
+    assert np.mean([r.drift for r in results]) >= 0.95
+    r = results[0]
+    assert r.slope == pytest.approx(-300.0, rel=0.5)
+    expected = (BAND.healthy[0] - r.level) / r.slope
+    assert r.days_to_band_edge == pytest.approx(max(expected, 0.0))
+
+
+def test_trend_recovers_an_exact_line():
+    dates = ["2026-01-01", "2026-02-01", "2026-03-01", "2026-04-01"]
+    days = np.array([0.0, 31.0, 59.0, 90.0])
+    r = trend("c", dates, 400e3 - 100.0 * days, np.full(4, 1e3))
+    assert r.slope == pytest.approx(-100.0, rel=1e-12)
+    assert r.level == pytest.approx(400e3 - 9000.0, rel=1e-12)
+    assert r.birge_ratio == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    "dates, match",
+    [
+        (["2026-02-01", "2026-01-01", "2026-03-01"], "unsorted"),
+        (["2026-01-01", "2026-01-01", "2026-03-01"], "duplicate"),
+        ([], "empty"),
+    ],
+)
+def test_bad_history_is_refused(dates, match):
+    with pytest.raises(ValueError, match=match):
+        trend("c", dates, np.ones(len(dates)), np.ones(len(dates)))
