@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from bogie_jax.monitor import decision_z, judge, ToleranceBand, trend
-from bogie_jax.monitor._trend import _two_sided_p
+from bogie_jax.monitor import ToleranceBand, decision_z, judge, trend, two_sided_p_value
 
 
 BAND = ToleranceBand.relative(400e3, 0.2, unit="N s/m")  # healthy 320-480 kN s/m, failed < 100
@@ -69,8 +68,8 @@ def test_zero_width_band_and_bad_alpha_are_refused():
 @pytest.mark.parametrize("dof", [1, 3, 7, 30])
 def test_student_t_tail_matches_scipy(dof):
     for t in (0.1, 1.0, 2.5, 8.0):
-        assert _two_sided_p(t, dof) == pytest.approx(2 * scipy.stats.t.sf(t, dof), rel=1e-9)
-    assert _two_sided_p(1.96, None) == pytest.approx(0.05, abs=1e-4)
+        assert two_sided_p_value(t, dof) == pytest.approx(2 * scipy.stats.t.sf(t, dof), rel=1e-9)
+    assert two_sided_p_value(1.96, None) == pytest.approx(0.05, abs=1e-4)
 
 
 def _series(rng, n, slope, scatter_factor=1.0):

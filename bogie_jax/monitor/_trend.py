@@ -18,7 +18,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from ._verdict import check_false_alarm_rate, ToleranceBand
+from ._verdict import ToleranceBand, check_false_alarm_rate
 
 
 SECONDS_PER_DAY = 86_400.0
@@ -128,7 +128,7 @@ def trend(
     level = mean + slope * dt_last
     se_level = inflate * math.sqrt(1 / np.sum(w) + dt_last**2 / s_tt)
     statistic = abs(slope) / se_slope
-    p_value = _two_sided_p(statistic, dof if inflate > 1 else None)
+    p_value = two_sided_p_value(statistic, dof if inflate > 1 else None)
     drift = bool(p_value < alpha)
     return Trend(
         name=name,
@@ -147,7 +147,7 @@ def trend(
     )
 
 
-def _two_sided_p(statistic: float, dof: int | None) -> float:
+def two_sided_p_value(statistic: float, dof: int | None) -> float:
     """P(|X| > statistic) for X standard normal (`dof` None) or Student's t with `dof`."""
     if dof is None:
         return 2 * (1 - NormalDist().cdf(statistic))
