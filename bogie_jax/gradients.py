@@ -32,25 +32,13 @@ import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
-from .cost import Objective
-from .cost._objective import traced_tolerances
+from ._solve_settings import full_checkpoints as full_checkpoints, traced_tolerances
+from .cost import Objective, residual_jacobian
 
 
 class _Method(NamedTuple):
     adjoint: Callable[[int, object], dfx.AbstractAdjoint]  # (max_steps, controller) -> adjoint
     modes: tuple[str, ...]  # supported AD modes, the default first
-
-
-def full_checkpoints(max_steps: int, controller=None) -> dfx.RecursiveCheckpointAdjoint:
-    """`RecursiveCheckpointAdjoint` with one checkpoint per step (`checkpoints = max_steps`).
-
-    With fewer checkpoints the backward pass recomputes runs of steps, and in diffrax 0.7.2 that
-    gives wrong gradients for time-dependent vector fields with `ConstantStepSize` (31 % off on a
-    forced oscillator; `tests/test_gradients.py` keeps the reproducer). One checkpoint per step
-    avoids the recomputation, costs a few hundred bytes per step of memory and is faster.
-    """
-    del controller
-    return dfx.RecursiveCheckpointAdjoint(checkpoints=max_steps)
 
 
 def seminorm_backsolve(max_steps: int, controller=None) -> dfx.BacksolveAdjoint:
@@ -137,8 +125,8 @@ def resolve_method(
 
 
 def _resolve_for(objective: Objective, method, mode):
-    model = objective.residual_model
-    return resolve_method(method, mode, model.max_steps, model.stepsize_controller)
+    settings = objective.settings
+    return resolve_method(method, mode, settings.max_steps, settings.stepsize_controller)
 
 
 # ------------------------------------------------------------------------------ compiled cores
@@ -152,6 +140,9 @@ def _vjp_theta(objective: Objective, theta, cotangent, alpha):
     """r (m,) and J^T (cotangent + alpha r) (n,)."""
     r, pullback = jax.vjp(objective.residuals, theta)
     return r, pullback(cotangent + jnp.where(alpha != 0, alpha * r, 0.0))[0]
+
+
+_jacobian = eqx.filter_jit(residual_jacobian)  # the library's one residual Jacobian, compiled
 
 
 @eqx.filter_jit
@@ -199,7 +190,7 @@ def gradient(
         return _finite_differences(objective, theta, name, jacobian, rel_noise, typical_scale)
     objective = objective.with_adjoint(adjoint)
     if mode == "fwd":
-        r, jac = _jvp_theta(objective, theta, jnp.eye(theta.size, dtype=theta.dtype))
+        r, jac = _jacobian(objective, theta)
         grad = jac.T @ r
     elif jacobian:
         r, jac = _jacrev_theta(objective, theta)
@@ -242,7 +233,7 @@ def fd_steps(theta, exponent: float, rel_noise: float, typical_scale: float = 1.
 
 def default_rel_noise(objective: Objective) -> float:
     """Relative accuracy of J: max(machine epsilon, rtol of the step-size controller)."""
-    rtol = getattr(objective.residual_model.stepsize_controller, "rtol", 0.0)
+    rtol = getattr(objective.settings.stepsize_controller, "rtol", 0.0)
     return max(float(np.finfo(float).eps), float(rtol))
 
 
@@ -296,8 +287,7 @@ def scalar_product_test(
     J v comes from forward mode (`jax.jvp` with `ForwardMode`), J^T w from the reverse-mode
     `method` (default `RecursiveCheckpointAdjoint`). Both differentiate the same discrete solve,
     so they agree to rounding (about 1e-12 in float64); `"backsolve"` is the continuous adjoint
-    and agrees only to the solver tolerance. `n_directions` defaults to n (so the forward pass
-    shares its compilation with `gradient(..., method="forward")`).
+    and agrees only to the solver tolerance. `n_directions` defaults to n.
     """
     name, adjoint, mode = _resolve_for(objective, method, "rev")
     theta = jnp.asarray(theta, dtype=float)
@@ -305,7 +295,7 @@ def scalar_product_test(
     key_v, key_w = jr.split(key)
     v = jr.normal(key_v, (k, theta.size), dtype=theta.dtype)
     w = jr.normal(key_w, (objective.n_residuals,), dtype=theta.dtype)
-    _, jv = _jvp_theta(objective.with_adjoint(dfx.ForwardMode()), theta, v)
+    _, jv = _jvp_theta(objective.forward_mode(), theta, v)
     _, jtw = _vjp_theta(objective.with_adjoint(adjoint), theta, w, jnp.zeros((), theta.dtype))
     lhs, rhs = w @ jv, v @ jtw
     scale = jnp.maximum(jnp.max(jnp.abs(lhs)), jnp.max(jnp.abs(rhs)))
@@ -346,7 +336,7 @@ def _core_memory(objective, theta, adjoint, mode) -> int:
         return _peak_bytes(_residuals, objective, theta)
     objective = objective.with_adjoint(adjoint)
     if mode == "fwd":
-        return _peak_bytes(_jvp_theta, objective, theta, jnp.eye(theta.size, dtype=theta.dtype))
+        return _peak_bytes(_jacobian, objective, theta)
     return _peak_bytes(_vjp_theta, objective, theta, jnp.zeros(objective.n_residuals), 1.0)
 
 

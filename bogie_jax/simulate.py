@@ -8,13 +8,19 @@ import jax
 import jax.numpy as jnp
 
 from ._precision import warn_if_float32
+from ._solve_settings import (
+    SolveSettings as SolveSettings,
+    default_controller as default_controller,
+    resolve_settings,
+)
 from ._validation import check_positive_int, check_range
-from .model import accelerations, build_model, N_DOF, vector_field
+from .model import N_DOF, accelerations, build_model, vector_field
 from .params import BogieParams, ModelOptions
 from .track import TrackIrregularity
 
 
 MAX_SPEED = 150.0  # [m/s] upper end of the valid speed range
+_DEFAULT_SETTINGS = SolveSettings()
 
 
 class Trajectory(eqx.Module):
@@ -58,11 +64,6 @@ def sample_times(duration: float, sample_rate: float):
     return jnp.arange(n) / sample_rate
 
 
-def default_controller(rtol: float = 1e-6, atol: float = 1e-9) -> dfx.PIDController:
-    """Default step-size controller: PID at rtol 1e-6, atol 1e-9 (states are mm and mrad)."""
-    return dfx.PIDController(rtol=rtol, atol=atol)
-
-
 def simulate(
     params: BogieParams,
     track: TrackIrregularity,
@@ -72,12 +73,8 @@ def simulate(
     sample_rate: float = 200.0,
     y0=None,
     options: ModelOptions = ModelOptions(),
-    solver: dfx.AbstractSolver = dfx.Tsit5(),
-    stepsize_controller: dfx.AbstractStepSizeController | None = None,
-    adjoint: dfx.AbstractAdjoint = dfx.RecursiveCheckpointAdjoint(),
-    max_steps: int = 100_000,
-    dt0: float | None = 1e-3,
-    throw: bool = True,
+    settings: SolveSettings | None = None,
+    **solve_options,
 ) -> Trajectory:
     """Simulate the bogie running at constant `speed` over `track`.
 
@@ -88,33 +85,33 @@ def simulate(
     - `duration`: simulated time [s] (static), `sample_rate`: output rate [Hz] (static).
     - `y0`: initial state (q, q_dot) (20,), default static equilibrium (zeros).
     - `options`: `ModelOptions` (nonlinear model options).
-    - `solver`, `stepsize_controller`, `adjoint`, `max_steps`, `dt0`, `throw`: passed to
-      `diffrax.diffeqsolve`. Use `adjoint=diffrax.ForwardMode()` for `jax.jacfwd`,
+    - `settings`: `SolveSettings` (solver, step-size controller, adjoint, `max_steps`, `dt0`,
+      `throw`; default `SolveSettings()`). Use `settings.forward_mode()` for `jax.jacfwd`,
       `throw=False` inside `vmap` (failures are then in `Trajectory.result`).
+    - `solve_options`: shorthand for single fields of `settings` (`max_steps=...`, ...).
 
     **Returns:** a `Trajectory`.
     """
-    check_simulation_inputs(speed, duration, sample_rate, max_steps)
+    settings = resolve_settings(settings, _DEFAULT_SETTINGS, **solve_options)
+    check_simulation_inputs(speed, duration, sample_rate, settings.max_steps)
     warn_if_float32()
-    if stepsize_controller is None:
-        stepsize_controller = default_controller()
     ts = sample_times(duration, sample_rate)
     model = build_model(params, speed=speed, track=track, options=options)
     if y0 is None:
         y0 = jnp.zeros(2 * N_DOF)
     solution = dfx.diffeqsolve(
         dfx.ODETerm(vector_field),
-        solver,
+        settings.solver,
         t0=0.0,
         t1=ts[-1],
-        dt0=dt0,
+        dt0=settings.dt0,
         y0=jnp.asarray(y0, dtype=float),
         args=model,
         saveat=dfx.SaveAt(ts=ts),
-        stepsize_controller=stepsize_controller,
-        adjoint=adjoint,
-        max_steps=max_steps,
-        throw=throw,
+        stepsize_controller=settings.stepsize_controller,
+        adjoint=settings.adjoint,
+        max_steps=settings.max_steps,
+        throw=settings.throw,
     )
     q, qd = solution.ys[:, :N_DOF], solution.ys[:, N_DOF:]
     qdd = jax.vmap(lambda t, a, b: accelerations(model, t, a, b))(ts, q, qd)

@@ -1,6 +1,7 @@
 """Sensors and measurements: accelerations from the equations of motion against independent
 oracles, noise and bias, the default layout, and Measurement IO (round trips and load errors)."""
 
+import dataclasses
 import json
 
 import diffrax as dfx
@@ -27,7 +28,7 @@ from bogie_jax.measure import (
     synthetic_measurement,
 )
 from bogie_jax.model import build_model
-from bogie_jax.track import perfect_track
+from bogie_jax.track import TrackReference, perfect_track
 
 
 try:
@@ -182,8 +183,9 @@ def _measurement(n=6, rate=100.0, layout=True):
         channels=("acc", "gyro"),
         units=("m/s^2", "rad/s"),
         speed=42.5,
-        track="erri-low seed=3",
+        track=TrackReference(spectrum="erri-low", seed=3, length=150.0),
         layout=layout_description(sensors) if layout else "",
+        note="run 7",
     )
 
 
@@ -193,14 +195,60 @@ def test_round_trip_keeps_data_missing_samples_and_metadata(tmp_path, suffix):
     back = load_measurement(save_measurement(tmp_path / f"m{suffix}", m))
     np.testing.assert_array_equal(back.times, m.times)
     np.testing.assert_array_equal(back.data, m.data)  # NaN positions included
-    assert (back.channels, back.units, back.track, back.layout) == (
+    assert (back.channels, back.units, back.track, back.layout, back.note) == (
         m.channels,
         m.units,
         m.track,
         m.layout,
+        m.note,
     )
     assert float(back.speed) == 42.5 and back.sample_rate == pytest.approx(100.0, rel=1e-12)
     assert bool(back.missing[2, 0]) and int(back.missing.sum()) == 1
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_track_reference_is_structured_metadata(tmp_path, suffix):
+    path = save_measurement(tmp_path / f"m{suffix}", _measurement())
+    if suffix == ".csv":
+        line = next(t for t in path.read_text().splitlines() if t.startswith("# track:"))
+        stored = json.loads(line.partition(":")[2])
+    else:
+        with np.load(path) as z:
+            stored = json.loads(str(z["track"]))
+    assert stored == TrackReference(spectrum="erri-low", seed=3, length=150.0).to_dict()
+    none = save_measurement(
+        tmp_path / f"n{suffix}", dataclasses.replace(_measurement(), track=None)
+    )
+    assert load_measurement(none).track is None
+
+
+def test_free_text_track_of_old_files_is_kept_as_a_note(tmp_path):
+    meta = "# speed_m_s: 50\n# sample_rate_hz: 100\n# track: erri-low seed=0\n"
+    m = load_measurement(_csv(tmp_path, "time_s,acc[m/s^2]\n0,1\n0.01,2\n", meta))
+    assert m.track is None and m.note == "track: erri-low seed=0"
+    path = tmp_path / "old.npz"
+    np.savez(
+        path,
+        times=m.times,
+        data=m.data,
+        channels=np.array(m.channels),
+        units=np.array(m.units),
+        speed=np.asarray(50.0),
+        track=np.array("fra-3 seed=2"),
+    )
+    assert load_measurement(path).note == "track: fra-3 seed=2"
+
+
+def test_measurement_track_must_be_a_reference():
+    with pytest.raises(MeasurementError, match="TrackReference"):
+        Measurement(
+            times=np.arange(3) / 10.0,
+            data=np.zeros((3, 1)),
+            channels=("a",),
+            units=("m",),
+            speed=1.0,
+            track="erri-low seed=0",
+        )
 
 
 def _csv(tmp_path, body, meta="# speed_m_s: 50\n# sample_rate_hz: 100\n"):

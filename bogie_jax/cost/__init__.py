@@ -1,6 +1,13 @@
 """The least-squares objective (paper eq. 12) over selected parameters in unconstrained
-coordinates: the single definition used by gradients, identification and sensitivity."""
+coordinates: the single definition used by gradients, identification and sensitivity, with its
+one residual Jacobian (`residual_jacobian`) and one covariance computation
+(`covariance_from_jacobian`)."""
 
+from ._covariance import (
+    Covariance as Covariance,
+    covariance_from_jacobian as covariance_from_jacobian,
+)
+from ._jacobian import forward_mode as forward_mode, residual_jacobian as residual_jacobian
 from ._make import make_objective as make_objective
 from ._objective import Objective as Objective, ResidualModel as ResidualModel
 from ._scenario import synthetic_objective as synthetic_objective

@@ -2,16 +2,16 @@
 
 from collections.abc import Mapping
 
-import diffrax as dfx
 import numpy as np
 
+from .._solve_settings import resolve_settings
 from ..measure import Measurement, MeasurementError
 from ..measure._layout import check_sensor_names
 from ..measure._measurement import check_channels_in_layout
 from ..params import BogieParams, ModelOptions
-from ..simulate import default_controller, sample_times
+from ..simulate import SolveSettings, sample_times
 from ..track import TrackIrregularity
-from ._objective import Objective, ResidualModel, traced_tolerances
+from ._objective import Objective, ResidualModel
 from ._selection import select_parameters
 
 
@@ -25,13 +25,9 @@ def make_objective(
     weights=None,
     bounds=None,
     options: ModelOptions = ModelOptions(),
-    solver: dfx.AbstractSolver = dfx.Tsit5(),
-    stepsize_controller: dfx.AbstractStepSizeController | None = None,
-    adjoint: dfx.AbstractAdjoint | None = None,
-    max_steps: int = 16_384,
-    dt0: float | None = 1e-3,
-    throw: bool = False,
+    settings: SolveSettings | None = None,
     y0=None,
+    **solve_options,
 ) -> Objective:
     """The objective J(theta) of paper eq. 12 for `measurement`, over the parameters `names`.
 
@@ -45,13 +41,16 @@ def make_objective(
       must have a sensor of that name and unit; extra sensors are ignored.
     - `weights`: W per channel [1/unit^2]: `None` = 1 / noise_std^2 of each sensor, an array
       (n_channels,), or `{channel: weight}` (others keep the default). Must be finite, > 0.
-    - `options`, `solver`, `stepsize_controller` (default PID rtol 1e-6, atol 1e-9), `adjoint`
-      (default `RecursiveCheckpointAdjoint(checkpoints=max_steps)`, see
-      `bogie_jax.gradients.full_checkpoints`), `max_steps`, `dt0`, `throw`, `y0`: the solve (see
-      `simulate`). With `throw=False` a failed solve gives infinite residuals instead of an error.
+    - `options`, `y0`: the run (see `simulate`); `settings`: the solve, default
+      `SolveSettings.for_objective()` (PID rtol 1e-6, atol 1e-9, `max_steps=16_384`,
+      `throw=False`: a failed solve gives infinite residuals instead of an error; reverse mode
+      with one checkpoint per step, what `jax.grad` needs; the Jacobian path switches to forward
+      mode by itself). `solve_options`: shorthand for single fields of `settings`
+      (`stepsize_controller=...`, `max_steps=...`).
 
     **Raises:** `ValueError` (`MeasurementError` for the data) naming the problem.
     """
+    settings = resolve_settings(settings, SolveSettings.for_objective(), **solve_options)
     sensors = _matching_sensors(measurement, sensors)
     duration, rate = _check_sampling(measurement)
     sqrt_w = np.sqrt(_weights(weights, sensors, measurement.channels))
@@ -70,16 +69,7 @@ def make_objective(
         duration=duration,
         sample_rate=rate,
         options=options,
-        solver=solver,
-        stepsize_controller=traced_tolerances(
-            default_controller() if stepsize_controller is None else stepsize_controller
-        ),
-        adjoint=dfx.RecursiveCheckpointAdjoint(checkpoints=max_steps)
-        if adjoint is None
-        else adjoint,
-        max_steps=max_steps,
-        dt0=dt0,
-        throw=throw,
+        settings=settings,
         y0=None if y0 is None else np.asarray(y0, dtype=float),
     )
     return Objective(select_parameters(params, names, bounds=bounds), model)

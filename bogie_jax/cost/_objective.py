@@ -14,24 +14,14 @@ import dataclasses
 import diffrax as dfx
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ..measure import readings_from_states
 from ..model import build_model
 from ..params import BogieParams, ModelOptions
-from ..simulate import Trajectory, simulate
+from ..simulate import SolveSettings, Trajectory, simulate
 from ..track import TrackIrregularity
 from ._selection import ParameterSelection
-
-
-def traced_tolerances(controller):
-    """A `PIDController` with its `rtol`/`atol` as 0-d arrays: traced rather than compile-time
-    constants, so objectives differing only in tolerance share one compilation."""
-    if isinstance(controller, dfx.PIDController):
-        tols = (np.asarray(controller.rtol, dtype=float), np.asarray(controller.atol, dtype=float))
-        return eqx.tree_at(lambda c: (c.rtol, c.atol), controller, tols)
-    return controller
 
 
 class ResidualModel(eqx.Module):
@@ -40,7 +30,8 @@ class ResidualModel(eqx.Module):
     Holds the measured data (`data` (n_times, n_channels) with missing samples set to 0 and
     `mask` True where present), `sqrt_weights` (n_channels,) = W^(1/2) [1/channel unit], the run
     (`track`, `speed` [m/s], `duration` [s], `sample_rate` [Hz], `y0`), the `sensors` and the
-    solver settings passed to `simulate`. Build it through `make_objective`.
+    `SolveSettings` passed to `simulate` (default `SolveSettings.for_objective()`). Build it
+    through `make_objective`.
     """
 
     params: BogieParams
@@ -53,13 +44,16 @@ class ResidualModel(eqx.Module):
     duration: float = eqx.field(static=True)
     sample_rate: float = eqx.field(static=True)
     options: ModelOptions = ModelOptions()
-    solver: dfx.AbstractSolver = dfx.Tsit5()
-    stepsize_controller: dfx.AbstractStepSizeController = dfx.PIDController(rtol=1e-6, atol=1e-9)
-    adjoint: dfx.AbstractAdjoint = dfx.RecursiveCheckpointAdjoint()
-    max_steps: int = eqx.field(default=16_384, static=True)
-    dt0: float | None = eqx.field(default=1e-3, static=True)
-    throw: bool = eqx.field(default=False, static=True)
+    settings: SolveSettings = SolveSettings.for_objective()
     y0: Float[Array, " 20"] | None = None
+
+    # Read-only views of `settings` (backward compatibility).
+    solver = property(lambda self: self.settings.solver)
+    stepsize_controller = property(lambda self: self.settings.stepsize_controller)
+    adjoint = property(lambda self: self.settings.adjoint)
+    max_steps = property(lambda self: self.settings.max_steps)
+    dt0 = property(lambda self: self.settings.dt0)
+    throw = property(lambda self: self.settings.throw)
 
     @property
     def n_residuals(self) -> int:
@@ -75,12 +69,7 @@ class ResidualModel(eqx.Module):
             sample_rate=self.sample_rate,
             y0=self.y0,
             options=self.options,
-            solver=self.solver,
-            stepsize_controller=self.stepsize_controller,
-            adjoint=self.adjoint,
-            max_steps=self.max_steps,
-            dt0=self.dt0,
-            throw=self.throw,
+            settings=self.settings,
         )
 
     def _predict(self, params):
@@ -169,20 +158,28 @@ class Objective(eqx.Module):
         """The simulated run at `theta`."""
         return self.residual_model.simulate(self.physical_params(theta))
 
-    def replace(self, **solver_settings) -> "Objective":
-        """A copy with other solver settings (`solver`, `stepsize_controller`, `adjoint`,
-        `max_steps`, `dt0`, `throw`), e.g. `objective.replace(adjoint=diffrax.ForwardMode())`."""
-        allowed = {"solver", "stepsize_controller", "adjoint", "max_steps", "dt0", "throw"}
-        unknown = set(solver_settings) - allowed
-        if unknown:
-            raise ValueError(f"cannot replace {sorted(unknown)}; valid: {sorted(allowed)}")
-        if "stepsize_controller" in solver_settings:
-            solver_settings["stepsize_controller"] = traced_tolerances(
-                solver_settings["stepsize_controller"]
-            )
-        model = dataclasses.replace(self.residual_model, **solver_settings)
+    @property
+    def settings(self) -> SolveSettings:
+        """The `SolveSettings` of the simulation."""
+        return self.residual_model.settings
+
+    def with_settings(self, settings: SolveSettings) -> "Objective":
+        """A copy simulating with `settings` (works under `jit`: no validation re-run)."""
+        if not isinstance(settings, SolveSettings):
+            raise TypeError(f"`settings` must be a SolveSettings, got {type(settings).__name__}")
+        model = dataclasses.replace(self.residual_model, settings=settings)
         return Objective(self.selection, model)
+
+    def replace(self, **solve_options) -> "Objective":
+        """A copy with some `SolveSettings` fields changed (`solver`, `stepsize_controller`,
+        `adjoint`, `max_steps`, `dt0`, `throw`), e.g. `objective.replace(max_steps=4096)`."""
+        return self.with_settings(self.settings.replace(**solve_options))
 
     def with_adjoint(self, adjoint: dfx.AbstractAdjoint) -> "Objective":
         """A copy that differentiates the solve with `adjoint`."""
-        return self.replace(adjoint=adjoint)
+        return self.with_settings(eqx.tree_at(lambda s: s.adjoint, self.settings, adjoint))
+
+    def forward_mode(self) -> "Objective":
+        """This objective differentiated in forward mode (`SolveSettings.forward_mode`), as
+        residual Jacobians need; the library switches by itself where it needs it."""
+        return self.with_settings(self.settings.forward_mode())

@@ -3,9 +3,11 @@
 import jax.numpy as jnp
 import numpy as np
 
+from .._solve_settings import SOLVE_OPTIONS, resolve_settings
 from ..measure import synthetic_measurement
 from ..params import BogieParams, ModelOptions
-from ..track import TrackIrregularity
+from ..simulate import SolveSettings
+from ..track import TrackIrregularity, TrackReference
 from ._make import make_objective
 from ._objective import Objective
 
@@ -21,23 +23,26 @@ def synthetic_objective(
     sensors=None,
     key=None,
     offset: float = 0.1,
-    track_name: str = "",
+    track_reference: TrackReference | None = None,
     options: ModelOptions = ModelOptions(),
+    settings: SolveSettings | None = None,
+    y0=None,
     **objective_kwargs,
 ) -> tuple[Objective, jnp.ndarray]:
     """Measure the bogie `params` (the truth) with `synthetic_measurement` and return the
     objective over `names` (nominal = truth) and a start theta0 with every selected parameter
     scaled by (1 + `offset`) (clipped into its bounds). J(0) is the noise level; J(theta0) > 0.
 
-    `key`: PRNG key for the measurement noise (None: noise-free). Other keyword arguments go to
-    `make_objective` (bounds, weights, solver settings) and, for `solver`,
-    `stepsize_controller`, `dt0` and `y0`, also to the simulation of the data.
+    `key`: PRNG key for the measurement noise (None: noise-free); `track_reference`: stored in
+    the measurement. `settings` (and single `SolveSettings` fields as keywords) and `y0` go to
+    `make_objective`; the data are simulated with the same solver, controller, `dt0` and `y0`
+    (`max_steps=100_000`). Other keyword arguments (bounds, weights) go to `make_objective`.
     """
-    sim_kwargs = {
-        k: objective_kwargs[k]
-        for k in ("solver", "stepsize_controller", "dt0", "y0")
-        if k in objective_kwargs
-    }
+    solve_options = {k: objective_kwargs.pop(k) for k in SOLVE_OPTIONS if k in objective_kwargs}
+    settings = resolve_settings(settings, SolveSettings.for_objective(), **solve_options)
+    data_settings = SolveSettings(
+        settings.solver, settings.stepsize_controller, max_steps=100_000, dt0=settings.dt0
+    )
     measurement = synthetic_measurement(
         params,
         track,
@@ -46,13 +51,15 @@ def synthetic_objective(
         sample_rate=sample_rate,
         sensors=sensors,
         key=key,
-        track_name=track_name,
+        track_reference=track_reference,
         options=options,
-        **sim_kwargs,
+        settings=data_settings,
+        y0=y0,
     )
     objective = make_objective(
-        measurement, params, track, names, sensors=sensors, options=options, **objective_kwargs
-    )
+        measurement, params, track, names, sensors=sensors, options=options, settings=settings,
+        y0=y0, **objective_kwargs,
+    )  # fmt: skip
     sel = objective.selection
     start = np.asarray(sel.nominal) * (1.0 + offset)
     lo, hi = np.asarray(sel.lower), np.asarray(sel.upper)

@@ -32,9 +32,14 @@ from ._multistart import (
     fit_multistart as fit_multistart,
 )
 from ._problem import (
+    RESULT_NAMES as RESULT_NAMES,
     BoxTransform as BoxTransform,
     LeastSquaresProblem as LeastSquaresProblem,
     as_problem as as_problem,
+    is_successful as is_successful,
+    results_from_names as results_from_names,
+    status_name as status_name,
+    status_names as status_names,
 )
 from ._scenarios import (
     SCENARIOS as SCENARIOS,

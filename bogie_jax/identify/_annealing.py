@@ -43,13 +43,16 @@ class SimulatedAnnealing(eqx.Module):
 
 
 class AnnealingResult(eqx.Module):
+    """One chain's best point (`estimates` physical, `theta`), its `cost`, the
+    `acceptance_rate`, the cost evaluations `num_fn_evals` and `wall_time` [s] (0-d array)."""
+
     names: tuple[str, ...] = eqx.field(static=True)
     estimates: jax.Array
     theta: jax.Array
     cost: jax.Array
     acceptance_rate: jax.Array
     num_fn_evals: jax.Array
-    wall_time: float = eqx.field(static=True)
+    wall_time: jax.Array
 
 
 class AnnealingState(eqx.Module):
@@ -171,7 +174,7 @@ def simulated_annealing(
         cost=f_best,
         acceptance_rate=rate,
         num_fn_evals=nfev,
-        wall_time=time.perf_counter() - tic,
+        wall_time=np.asarray(time.perf_counter() - tic),
     )
 
 

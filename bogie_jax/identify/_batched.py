@@ -3,11 +3,15 @@
 `fit_multistart` closes over its problem, so every new data set (a new trial, a new chunk's
 caller, a new command run) compiles the vmapped batch again: minutes for a simulation
 objective. Here the objective's arrays are an input of the compiled batch (broadcast to every
-member, or stacked: one data set per member), and the compiled runner is cached by the
-objective's static structure, the method, `max_steps`, the devices and an optional annealing
-schedule. Members and failure flags are as in `fit_multistart`; LM, Gauss-Newton and Dogleg fits
-run as a queue (`lanes` in flight per device, see `bogie_jax.queued_batch`) unless `lanes=None`.
+member, or stacked: one data set per member), and `batched_fits` keeps the runners it built
+in a small LRU cache (`RUNNER_CACHE_SIZE` entries) keyed by equality (not `repr`) of the
+objective's static structure, the method, `max_steps`, the devices, the lanes and an optional
+annealing schedule; a key that cannot be hashed is not cached. Members and failure flags are
+as in `fit_multistart`; LM, Gauss-Newton and Dogleg fits run as a queue (`lanes` in flight per
+device, see `bogie_jax.queued_batch`) unless `lanes=None`.
 """
+
+import collections
 
 import equinox as eqx
 import jax
@@ -17,10 +21,11 @@ from ..batch import batch_runner
 from ._annealing import anneal_theta
 from ._iteration import queue_lanes, queued_fits, supports_queue
 from ._local import as_method
-from ._problem import SUCCESS, as_problem
+from ._problem import as_problem, is_successful
 
 
-_RUNNERS: dict = {}
+RUNNER_CACHE_SIZE = 8  # runners kept by `batched_fits` (each holds its compiled programs)
+_RUNNERS: collections.OrderedDict = collections.OrderedDict()
 
 
 class BatchedFits:
@@ -58,7 +63,7 @@ class BatchedFits:
             return out, problem.cost(out.theta)
 
         self.runner = batch_runner(
-            member, devices=devices, failure_fn=lambda out: out[0].result != SUCCESS
+            member, devices=devices, failure_fn=lambda out: ~is_successful(out[0].result)
         )
 
     def _inputs(self, objective, thetas, keys, stacked):
@@ -84,24 +89,31 @@ class BatchedFits:
 def batched_fits(
     objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes="auto"
 ):
-    """A cached `BatchedFits` for `objective`'s structure (compiled once per process)."""
+    """A `BatchedFits` for `objective`'s structure, reused from the bounded cache when an equal
+    structure, method and settings were seen (see module docstring; `clear_runner_cache`)."""
     static = eqx.partition(objective, eqx.is_array)[1]
     leaves, treedef = jax.tree.flatten(static)
     devs = tuple(jax.devices() if devices is None else devices)
-    key = (
-        treedef,
-        tuple(map(repr, leaves)),
-        repr(as_method(method)),
-        max_steps,
-        repr(schedule),
-        devs,
-        lanes,
+    key = (treedef, tuple(leaves), as_method(method), max_steps, schedule, devs, lanes)
+    build = lambda: BatchedFits(
+        objective, method, max_steps, schedule=schedule, devices=devices, lanes=lanes
     )
-    if key not in _RUNNERS:
-        _RUNNERS[key] = BatchedFits(
-            objective, method, max_steps, schedule=schedule, devices=devices, lanes=lanes
-        )
+    try:
+        hash(key)
+    except TypeError:  # e.g. a method holding arrays: build, do not cache
+        return build()
+    if key in _RUNNERS:
+        _RUNNERS.move_to_end(key)
+    else:
+        _RUNNERS[key] = build()
+        while len(_RUNNERS) > RUNNER_CACHE_SIZE:
+            _RUNNERS.popitem(last=False)
     return _RUNNERS[key]
+
+
+def clear_runner_cache() -> None:
+    """Drop the runners kept by `batched_fits` (and their compiled programs)."""
+    _RUNNERS.clear()
 
 
 def stack_objectives(objectives):

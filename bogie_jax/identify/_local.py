@@ -2,8 +2,9 @@
 
 Methods are strategy objects (`AbstractLocalMethod`); strings are accepted only through the
 `LOCAL_METHODS` name table. `fit` returns a `FitResult` with Gauss-Newton statistics:
-covariance `s^2 (J^T J)^-1` with `s^2 = 2 J / (m - n)`, mapped to physical units by the
-derivative of the transform (delta method).
+covariance `s^2 (J^T J)^+` with `s^2 = 2 J / (m - n)` (`bogie_jax.cost.covariance_from_jacobian`,
+rank deficiency reported), mapped to physical units by the derivative of the transform (delta
+method). Solver status is `optimistix.RESULTS`.
 """
 
 import abc
@@ -12,17 +13,38 @@ import time
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 
+from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
 from ._householder import HouseholderQR
-from ._problem import SUCCESS, as_problem, param_names, start_theta, status_name
+from ._problem import (
+    _legacy_code,
+    as_problem,
+    as_results,
+    is_successful,
+    param_names,
+    start_theta,
+    status_name,
+)
+
+
+def _code(result) -> jax.Array:
+    """Transitional: `LocalOutput.result` is carried as an int32 code while `_iteration.py` and
+    `_chunked.py` build it from codes; once they carry `optimistix.RESULTS`, make the field an
+    `optx.RESULTS` (converter `as_results`) and drop this. Read codes only with `as_results`,
+    `is_successful` and `status_names`."""
+    if isinstance(result, type(optx.RESULTS.successful)):
+        result = _legacy_code(result)
+    return jnp.asarray(result, dtype=jnp.int32)
 
 
 class LocalOutput(eqx.Module):
-    """Raw outcome of one local solve (vmappable: no `Solution` objects)."""
+    """Raw outcome of one local solve (vmappable: no `Solution` objects). `result`: the solver
+    status (an `optimistix.RESULTS`, stored as its code for now, see `_code`)."""
 
     theta: jax.Array
-    result: jax.Array  # int32 code of optx.RESULTS
+    result: jax.Array = eqx.field(converter=_code)
     num_steps: jax.Array
     num_fn_evals: jax.Array
     num_jac_evals: jax.Array
@@ -34,10 +56,6 @@ class AbstractLocalMethod(eqx.Module):
     @abc.abstractmethod
     def solve(self, problem, theta0, max_steps: int) -> LocalOutput:
         raise NotImplementedError
-
-
-def _code(result) -> jax.Array:
-    return jnp.asarray(result._value, dtype=jnp.int32)
 
 
 class LeastSquaresMethod(AbstractLocalMethod):
@@ -54,7 +72,7 @@ class LeastSquaresMethod(AbstractLocalMethod):
             problem.residuals, self.solver, theta0, problem.args, max_steps=max_steps, throw=False
         )
         steps = jnp.asarray(sol.stats["num_steps"])
-        return LocalOutput(sol.value, _code(sol.result), steps, steps, steps)
+        return LocalOutput(sol.value, sol.result, steps, steps, steps)
 
 
 class MinimiserMethod(AbstractLocalMethod):
@@ -80,7 +98,7 @@ class MinimiserMethod(AbstractLocalMethod):
             fevs, jevs = theta0.size + 1 + 2 * steps, jnp.zeros_like(steps)
         else:
             fevs, jevs = steps + 1, steps
-        return LocalOutput(sol.value, _code(sol.result), steps, fevs, jevs)
+        return LocalOutput(sol.value, sol.result, steps, fevs, jevs)
 
     def solve(self, problem, theta0, max_steps):
         out = self._run(problem, theta0, max_steps)
@@ -146,7 +164,7 @@ class PatternSearch(AbstractLocalMethod):
             ),
             optx.RESULTS.nonlinear_divergence,
         )
-        return LocalOutput(theta, _code(result), k, 1 + 2 * n * k, jnp.zeros_like(k))
+        return LocalOutput(theta, result, k, 1 + 2 * n * k, jnp.zeros_like(k))
 
 
 def local_methods(rtol: float = 1e-10, atol: float = 1e-10) -> dict:
@@ -192,10 +210,13 @@ def as_method(method) -> AbstractLocalMethod:
 class FitResult(eqx.Module):
     """Outcome of one fit, in physical units unless stated.
 
-    `covariance = D s^2 (J^T J)^-1 D^T` with `J` the residual Jacobian in `theta`, `D` the
-    Jacobian of `to_physical`, and `s^2 = 2 cost / dof`, `dof = m - n`. `ci95` uses the
-    Student-t quantile with `dof` degrees of freedom. Evaluation counts include the final
-    residual + Jacobian evaluation for the statistics.
+    `covariance = D s^2 (J^T J)^+ D^T` with `J` the residual Jacobian in `theta`, `D` the
+    (diagonal) Jacobian of `to_physical`, and `s^2 = 2 cost / dof`, `dof = m - n`; `uncertainty`
+    is the whole `Covariance` (rank, condition number, null directions in `theta`): a
+    rank-deficient fit has infinite standard errors for the parameters of its unidentifiable
+    combinations. `ci95` uses the Student-t quantile with `dof` degrees of freedom. Evaluation
+    counts include the final residual + Jacobian evaluation for the statistics. `status`:
+    `optimistix.RESULTS`; `wall_time` [s]: the fit's time (compile included on a first call).
     """
 
     names: tuple[str, ...] = eqx.field(static=True)
@@ -212,12 +233,23 @@ class FitResult(eqx.Module):
     num_steps: jax.Array
     num_fn_evals: jax.Array
     num_jac_evals: jax.Array
-    status: jax.Array
-    wall_time: float = eqx.field(static=True)
+    status: optx.RESULTS = eqx.field(converter=as_results)
+    wall_time: jax.Array
+    uncertainty: Covariance
 
     @property
     def success(self) -> bool:
-        return int(self.status) == SUCCESS
+        return bool(is_successful(self.status))
+
+    @property
+    def rank(self) -> int:
+        """Number of identifiable parameter directions at the estimate."""
+        return int(self.uncertainty.rank)
+
+    @property
+    def null_directions(self) -> np.ndarray:
+        """`(n, n - rank)` unidentifiable directions in `theta` (see `Covariance`)."""
+        return self.uncertainty.null_directions
 
     @property
     def status_name(self) -> str:
@@ -243,21 +275,21 @@ def t_quantile(q: float, dof: int):
 
 
 def statistics(problem, theta, bound_tol: float):
-    """Cost, Gauss-Newton covariance and on-bound flags at `theta` (jit-safe)."""
-    residuals = lambda th: jnp.ravel(problem.residuals(th, problem.args))
-    r = residuals(theta)
-    jac = jax.jacfwd(residuals)(theta)
+    """Cost, Gauss-Newton covariance and on-bound flags at `theta` (jit-safe).
+
+    The residual Jacobian is `bogie_jax.cost.residual_jacobian`, the covariance
+    `bogie_jax.cost.covariance_from_jacobian` in `theta` (dimensionless log / logit
+    coordinates), mapped to physical units by the transform's derivative (element-wise
+    transforms: a diagonal `D`)."""
+    r, jac = residual_jacobian(problem, theta, problem.args)
     m, n = jac.shape
     dof = m - n
     cost = 0.5 * jnp.sum(r**2)
     s2 = 2.0 * cost / dof if dof > 0 else jnp.asarray(jnp.nan)
-    d = jax.jacfwd(problem.transform.to_physical)(theta)
-    unscaled = d @ jnp.linalg.inv(jac.T @ jac) @ d.T  # (J_p^T J_p)^-1 by the chain rule
-    covariance = s2 * unscaled
-    estimates = problem.transform.to_physical(theta)
-    se = jnp.sqrt(jnp.diag(covariance))
+    estimates, d = jax.jvp(problem.transform.to_physical, (theta,), (jnp.ones_like(theta),))
+    uncertainty = covariance_from_jacobian(jac, sigma2=s2, scale=d)
+    se = uncertainty.std_errors
     half = t_quantile(0.975, max(dof, 1)) * se
-    unit = jnp.sqrt(jnp.diag(unscaled))
     lower, upper = problem.transform.lower, problem.transform.upper
     u = (estimates - lower) / (upper - lower)
     return dict(
@@ -265,8 +297,9 @@ def statistics(problem, theta, bound_tol: float):
         cost=cost,
         std_errors=se,
         ci95=jnp.stack([estimates - half, estimates + half], axis=-1),
-        correlation=unscaled / jnp.outer(unit, unit),
-        covariance=covariance,
+        correlation=uncertainty.correlation,
+        covariance=uncertainty.covariance,
+        uncertainty=uncertainty,
         noise_variance=s2,
         dof=dof,
         on_bound=(u < bound_tol) | (u > 1.0 - bound_tol),
@@ -316,7 +349,7 @@ def fit(
         num_fn_evals=out.num_fn_evals + 1,
         num_jac_evals=out.num_jac_evals + 1,
         status=out.result,
-        wall_time=wall,
+        wall_time=np.asarray(wall),
         **stats,
     )
     if throw and not result.success:

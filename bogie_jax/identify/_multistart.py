@@ -23,7 +23,14 @@ import numpy as np
 from ..batch import batch_runner
 from ._iteration import queue_lanes, queued_fits, supports_queue
 from ._local import FitResult, as_method, statistics
-from ._problem import SUCCESS, as_problem, bounds, param_names, start_theta, status_name
+from ._problem import (
+    as_problem,
+    bounds,
+    is_successful,
+    param_names,
+    start_theta,
+    status_names,
+)
 
 
 class AbstractDesign(eqx.Module):
@@ -90,14 +97,14 @@ class MultistartResult(eqx.Module):
     starts: np.ndarray  # (N, n) physical
     ends: np.ndarray  # (N, n) physical
     costs: np.ndarray  # (N,)
-    status: np.ndarray  # (N,) optx.RESULTS codes
+    status: np.ndarray  # (N,) str: optx.RESULTS member names (`RESULT_NAMES`)
     failed: np.ndarray  # (N,) bool
     num_steps: np.ndarray
     num_fn_evals: np.ndarray
     num_jac_evals: np.ndarray
     clusters: tuple[Cluster, ...]
     best: FitResult | None
-    wall_time: float
+    wall_time: np.ndarray  # [s], 0-d
 
     def records(self) -> list[dict]:
         """Per-start records (JSON-ready)."""
@@ -106,7 +113,7 @@ class MultistartResult(eqx.Module):
                 start=self.starts[i].tolist(),
                 end=self.ends[i].tolist(),
                 cost=float(self.costs[i]),
-                status=status_name(self.status[i]),
+                status=str(self.status[i]),
                 failed=bool(self.failed[i]),
                 num_steps=int(self.num_steps[i]),
                 num_fn_evals=int(self.num_fn_evals[i]),
@@ -135,7 +142,7 @@ def run_batch(member, batch, *, chunk_size, devices):
         member,
         chunk_size=chunk_size,
         devices=devices,
-        failure_fn=lambda out: out[0].result != SUCCESS,
+        failure_fn=lambda out: ~is_successful(out[0].result),
     )
     return jax.block_until_ready(runner(batch))
 
@@ -170,8 +177,8 @@ def collect(problem, starts_theta, batch, wall, *, cluster_tol, bound_tol, throw
             num_steps=out.num_steps[h],
             num_fn_evals=jnp.asarray(n_fev.sum() + 1),
             num_jac_evals=jnp.asarray(np.asarray(out.num_jac_evals).sum() + 1),
-            status=out.result[h],
-            wall_time=wall,
+            status=jax.tree.map(lambda x: x[h], out.result),
+            wall_time=np.asarray(wall),
             **stats,
         )
     elif throw:
@@ -181,14 +188,14 @@ def collect(problem, starts_theta, batch, wall, *, cluster_tol, bound_tol, throw
         starts=np.asarray(jax.vmap(tr.to_physical)(starts_theta)),
         ends=ends,
         costs=costs,
-        status=np.asarray(out.result),
+        status=status_names(out.result),
         failed=failed,
         num_steps=np.asarray(out.num_steps),
         num_fn_evals=n_fev,
         num_jac_evals=np.asarray(out.num_jac_evals),
         clusters=clusters,
         best=best,
-        wall_time=wall,
+        wall_time=np.asarray(wall),
     )
 
 

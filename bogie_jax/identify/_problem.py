@@ -14,6 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from ..cost import forward_mode
+
 
 class BoxTransform(eqx.Module):
     """Scaled logistic map between unconstrained `theta` and a box `[lower, upper]`.
@@ -76,9 +78,9 @@ def as_problem(problem) -> LeastSquaresProblem:
 
     An objective is anything with `residuals(theta, args)` and a transform attribute named
     `selection` (as `bogie_jax.cost.Objective` has) or `transform`. With `selection`, the
-    residuals are wrapped in `JacobianResiduals` (the Jacobian materialised once per
-    linearisation by forward mode; give the objective an adjoint that supports forward mode,
-    e.g. `objective.with_adjoint(diffrax.ForwardMode())`).
+    objective is switched to forward mode (`bogie_jax.cost.forward_mode`: no adjoint switch by
+    the caller) and its residuals are wrapped in `JacobianResiduals` (the Jacobian materialised
+    once per linearisation).
     """
     if isinstance(problem, LeastSquaresProblem):
         return problem
@@ -89,7 +91,7 @@ def as_problem(problem) -> LeastSquaresProblem:
         # tangent solve per linearisation instead of one per Jacobian-vector product).
         from ._jacobian import JacobianResiduals
 
-        return LeastSquaresProblem(JacobianResiduals(problem), transform, None)
+        return LeastSquaresProblem(JacobianResiduals(forward_mode(problem)), transform, None)
     if callable(getattr(problem, "residuals", None)) and transform is not None:
         # A bound method of an eqx.Module is itself a pytree: the objective's arrays stay leaves.
         return LeastSquaresProblem(problem.residuals, transform, None)
@@ -133,9 +135,76 @@ def start_theta(transform, start) -> jax.Array:
     return jnp.asarray(transform.to_theta(jnp.asarray(start)))
 
 
-STATUS_NAMES = {int(item._value): name for name, item in optx.RESULTS._name_to_item.items()}
-SUCCESS = int(optx.RESULTS.successful._value)
+# Solver status: `optimistix.RESULTS`. On the host (records, `MultistartResult.status`) a status
+# is the name of its member, one of `RESULT_NAMES`.
+RESULT_NAMES = tuple(
+    name
+    for name in (
+        "successful",
+        "max_steps_reached",
+        "singular",
+        "breakdown",
+        "stagnation",
+        "conlim",
+        "nonfinite_input",
+        "nonlinear_max_steps_reached",
+        "nonlinear_divergence",
+        "nonfinite",
+    )
+    if hasattr(optx.RESULTS, name)
+)
 
 
-def status_name(code) -> str:
-    return STATUS_NAMES.get(int(code), f"unknown({int(code)})")
+def _legacy_code(item) -> jax.Array:
+    return jax.tree.leaves(item)[0]  # the item's only leaf, its int32 code
+
+
+def as_results(result):
+    """`result` as an `optimistix.RESULTS` (scalar or batched). An int32 code array is accepted
+    from producers that still carry codes (`_iteration.py`, `_chunked.py`; transitional)."""
+    if isinstance(result, type(optx.RESULTS.successful)):
+        return result
+    code = jnp.asarray(result)
+
+    def one(c):
+        out = optx.RESULTS.successful
+        for name in RESULT_NAMES:
+            item = getattr(optx.RESULTS, name)
+            out = optx.RESULTS.where(c == _legacy_code(item), item, out)
+        return out
+
+    if code.ndim == 0:
+        return one(code)
+    flat = jax.vmap(one)(code.reshape(-1))
+    return jax.tree.map(lambda x: x.reshape(code.shape), flat)
+
+
+def is_successful(result) -> jax.Array:
+    """Boolean (array, under vmap): whether `result` is `RESULTS.successful`."""
+    return as_results(result) == optx.RESULTS.successful
+
+
+def status_names(result) -> np.ndarray:
+    """The member names (`RESULT_NAMES`) of a concrete, possibly batched, `RESULTS`."""
+    result = as_results(result)
+    names = np.full(np.shape(_legacy_code(result)), "unknown", dtype=object)
+    for name in RESULT_NAMES:
+        names = np.where(np.asarray(result == getattr(optx.RESULTS, name)), name, names)
+    return names.astype(str)
+
+
+def status_name(result) -> str:
+    """The member name of one concrete `RESULTS` (e.g. `"nonlinear_max_steps_reached"`)."""
+    return str(status_names(result).reshape(-1)[0])
+
+
+def results_from_names(names) -> "optx.RESULTS":
+    """A batched `RESULTS` from member names (e.g. read back from records)."""
+    items = [getattr(optx.RESULTS, str(n)) for n in names]
+    return jax.tree.map(lambda *codes: jnp.stack(codes), *items)
+
+
+# Transitional: `_iteration.py` and `_chunked.py` still carry int32 codes; remove once they
+# carry `RESULTS` (see `as_results`).
+SUCCESS = int(_legacy_code(optx.RESULTS.successful))
+STATUS_NAMES = {int(_legacy_code(getattr(optx.RESULTS, n))): n for n in RESULT_NAMES}

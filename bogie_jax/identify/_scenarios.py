@@ -16,6 +16,8 @@ import numpy as np
 
 from ..cost import get_parameter, make_objective, select_parameters
 from ..params import PARAMETER_SETS, parameter_specs
+from ..simulate import SolveSettings
+from ..track import TrackReference
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,11 +81,13 @@ def tolerance_bounds(params, names, band: float) -> dict:
 
 
 class SyntheticProblem(eqx.Module):
-    """An objective with known true values (`truth`, physical, in selection order)."""
+    """An objective with known true values (`truth`, physical, in selection order), its
+    `scenario` and the `track` it ran over (`TrackReference`, `None` for a track passed in)."""
 
     objective: object
     truth: np.ndarray
     scenario: Scenario = eqx.field(static=True)
+    track: TrackReference | None = eqx.field(static=True, default=None)
 
 
 def true_params(nominal, offsets: dict):
@@ -126,13 +130,13 @@ def scenario_problem(
       channel's RMS (e.g. 0.02 for "2 % noise"), weighted by the inverse of that variance.
     - `duration`, `sample_rate`: override the scenario's.
     - `rtol`: solver tolerance of the data and the fit (`atol = 1e-3 rtol`).
-    - `adjoint`: the solve's adjoint (default `diffrax.ForwardMode()`: the Jacobian of the
-      residuals is taken in forward mode by the least-squares solvers).
-    - `track`: a `TrackIrregularity` to use instead of the scenario's.
+    - `adjoint`: the objective's adjoint (default: that of `SolveSettings.for_objective()`,
+      reverse mode for `jax.grad`; fits switch to forward mode by themselves).
+    - `track`: a `TrackIrregularity` to use instead of the scenario's (then `track` of the
+      result is `None`); by default the scenario's `TrackReference.for_run(...)`.
 
     **Raises:** `ValueError` for an unknown scenario or parameter name or an empty selection.
     """
-    from .._tracks import run_track
     from ..measure import default_sensor_layout, synthetic_measurement
 
     sc = as_scenario(scenario)
@@ -149,12 +153,18 @@ def scenario_problem(
     bounds = tolerance_bounds(nominal, names, sc.band)
     select_parameters(nominal, names, bounds=bounds)  # names checked before anything is simulated
     truth_params = true_params(nominal, sc.offsets)
+    reference = None
     if track is None:
-        track = run_track(sc.track, nominal, seed=sc.seed, speed=sc.speed, duration=sc.duration)
+        wheelbase = 2 * float(nominal.geometry.semi_wheelbase)
+        reference = TrackReference.for_run(
+            sc.track, seed=sc.seed, speed=sc.speed, duration=sc.duration, wheelbase=wheelbase
+        )
+        track = reference.build()
     sensors = default_sensor_layout(nominal)
     if sc.channels is not None:
         sensors = tuple(s for s in sensors if s.name in sc.channels)
     controller = dfx.PIDController(rtol=rtol, atol=1e-3 * rtol)
+    settings = SolveSettings(stepsize_controller=controller)
     measurement = synthetic_measurement(
         truth_params,
         track,
@@ -164,8 +174,8 @@ def scenario_problem(
         sensors=sensors,
         key=None if relative_noise is not None else key,
         noise_scale=noise_scale,
-        track_name=f"{sc.track} seed={sc.seed}",
-        stepsize_controller=controller,
+        track_reference=reference,
+        settings=settings,
     )
     weights = None
     if relative_noise is not None:
@@ -184,11 +194,10 @@ def scenario_problem(
         sensors=sensors,
         bounds=bounds,
         weights=weights,
-        stepsize_controller=controller,
-        adjoint=dfx.ForwardMode() if adjoint is None else adjoint,
+        settings=SolveSettings.for_objective(stepsize_controller=controller, adjoint=adjoint),
     )
     truth = np.array([float(np.asarray(get_parameter(truth_params, n))) for n in names])
-    return SyntheticProblem(objective, truth, sc)
+    return SyntheticProblem(objective, truth, sc, reference)
 
 
 def relative_errors(estimates, truth) -> np.ndarray:

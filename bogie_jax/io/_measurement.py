@@ -3,10 +3,11 @@
 CSV format (UTF-8 text, one sample per row):
 
 ```
-# bogie_jax measurement, format 1
+# bogie_jax measurement, format 2
 # speed_m_s: 50
 # sample_rate_hz: 200
-# track: erri-low seed=0
+# track: {"spectrum": "erri-low", "seed": 0, "length_m": 200.0, "band_m": [3.0, 70.0], "file": null}
+# note: free text
 # layout: [{"type":"Accelerometer","name":"frame_1L_y",...}]
 time_s,frame_1L_y[m/s^2],frame_1L_z[m/s^2],frame_yaw_rate[rad/s]
 0,0.0123,-0.0456,1.2e-05
@@ -14,19 +15,22 @@ time_s,frame_1L_y[m/s^2],frame_1L_z[m/s^2],frame_yaw_rate[rad/s]
 ```
 
 - Lines `# key: value` before the header carry the metadata: `speed_m_s` [m/s] and
-  `sample_rate_hz` [Hz] are required; `track` (free text) and `layout` (one line of JSON, see
-  `bogie_jax.measure.layout_description`) are optional. Other `#` lines and blank lines are
-  ignored.
+  `sample_rate_hz` [Hz] are required; `track` (one line of JSON, `TrackReference.to_dict`),
+  `layout` (one line of JSON, see `bogie_jax.measure.layout_description`) and `note` (free
+  text) are optional. Other `#` lines and blank lines are ignored.
+- Files of format 1 carried the track as free text (e.g. `erri-low seed=0`). It is never parsed:
+  such a file loads with `track=None` and the text kept in `note` as `track: <text>`.
 - The header is `time_s` followed by one `name[unit]` column per channel.
 - Each row: the time [s] and one value per channel; `nan` or an empty cell is a missing sample.
 - Times must be strictly increasing and uniformly spaced at `sample_rate_hz`.
 
-The `.npz` holds `times`, `data`, `channels`, `units`, `speed`, `track`, `layout`,
-`sample_rate_hz` and `format`. Loading either rejects wrong shapes, unknown channels (not in the
-layout, or not among `sensors`), non-monotone times and mismatched sample rates with a
-`MeasurementError` (a `ValueError`) naming the file and the problem.
+The `.npz` holds `times`, `data`, `channels`, `units`, `speed`, `track` (the JSON text, or ""),
+`layout`, `note`, `sample_rate_hz` and `format`. Loading either rejects wrong shapes, unknown
+channels (not in the layout, or not among `sensors`), non-monotone times and mismatched sample
+rates with a `MeasurementError` (a `ValueError`) naming the file and the problem.
 """
 
+import json
 import math
 import os
 import re
@@ -37,9 +41,10 @@ import numpy as np
 from ..measure import Measurement, MeasurementError
 from ..measure._layout import layout_description
 from ..measure._measurement import check_channels_in_layout, check_times
+from ..track import TrackReference
 
 
-FORMAT = "bogie_jax.measurement/1"
+FORMAT = "bogie_jax.measurement/2"
 _COLUMN = re.compile(r"^([^\[\],]+)\[([^\[\]]*)\]$")
 _REQUIRED_NPZ = ("times", "data", "channels", "units", "speed")
 
@@ -61,19 +66,22 @@ def save_measurement(path, measurement: Measurement) -> Path:
             channels=np.array(m.channels),
             units=np.array(m.units),
             speed=np.asarray(m.speed, dtype=float),
-            track=np.array(m.track),
+            track=np.array(_track_json(m.track)),
             layout=np.array(m.layout),
+            note=np.array(m.note),
             sample_rate_hz=np.array(m.sample_rate),
             format=np.array(FORMAT),
         )
         return path
     with open(path, "w", encoding="utf-8") as f:
-        f.write(f"# bogie_jax measurement, format 1\n# speed_m_s: {float(np.asarray(m.speed))!r}\n")
+        f.write(f"# bogie_jax measurement, format 2\n# speed_m_s: {float(np.asarray(m.speed))!r}\n")
         f.write(f"# sample_rate_hz: {m.sample_rate!r}\n")
-        if m.track:
-            f.write(f"# track: {m.track}\n")
+        if m.track is not None:
+            f.write(f"# track: {_track_json(m.track)}\n")
         if m.layout:
             f.write(f"# layout: {m.layout}\n")
+        if m.note:
+            f.write(f"# note: {' '.join(m.note.splitlines())}\n")
         f.write(",".join(["time_s"] + [f"{c}[{u}]" for c, u in zip(m.channels, m.units)]) + "\n")
         np.savetxt(f, np.column_stack([times, data]), fmt="%.17g", delimiter=",")
     return path
@@ -129,8 +137,13 @@ def _read_npz(name):
             channels=tuple(str(c) for c in channels),
             units=tuple(str(u) for u in units),
             speed=float(speed),
-            track=str(z["track"]) if "track" in z.files else "",
             layout=str(z["layout"]) if "layout" in z.files else "",
+        )
+        fields.update(
+            _track_fields(
+                str(z["track"]) if "track" in z.files else "",
+                str(z["note"]) if "note" in z.files else "",
+            )
         )
         rate = float(z["sample_rate_hz"]) if "sample_rate_hz" in z.files else None
     if fields["times"].ndim != 1:
@@ -150,7 +163,7 @@ def _read_csv(name):
                 if (
                     header is None
                     and sep
-                    and key.strip() in ("speed_m_s", "sample_rate_hz", "track", "layout")
+                    and key.strip() in ("speed_m_s", "sample_rate_hz", "track", "layout", "note")
                 ):
                     meta[key.strip()] = value.strip()
                 continue
@@ -173,13 +186,32 @@ def _read_csv(name):
         channels=tuple(c for c, _ in header),
         units=tuple(u for _, u in header),
         speed=_number(meta["speed_m_s"], "speed_m_s"),
-        track=meta.get("track", ""),
         layout=meta.get("layout", ""),
+        **_track_fields(meta.get("track", ""), meta.get("note", "")),
     )
     if not np.all(np.isfinite(fields["times"])):
         i = int(np.flatnonzero(~np.isfinite(fields["times"]))[0])
         raise MeasurementError(f"line {lines[i]}: the time must be a finite number")
     return fields, _number(meta["sample_rate_hz"], "sample_rate_hz")
+
+
+def _track_json(track: TrackReference | None) -> str:
+    return "" if track is None else json.dumps(track.to_dict())
+
+
+def _track_fields(text: str, note: str) -> dict:
+    """`track` and `note` from the stored track text: JSON of a `TrackReference`, "" (none), or
+    the free text of a format-1 file (never parsed: kept in `note`, `track=None`)."""
+    text = text.strip()
+    if not text:
+        return dict(track=None, note=note)
+    if text.startswith("{"):
+        try:
+            return dict(track=TrackReference.from_dict(json.loads(text)), note=note)
+        except (json.JSONDecodeError, TypeError, ValueError) as e:
+            raise MeasurementError(f"metadata `track` is not a track reference: {e}") from None
+    old = f"track: {text}"
+    return dict(track=None, note=f"{old}; {note}" if note else old)
 
 
 def _number(text, key) -> float:

@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ..track import TrackReference
 from ._layout import sensors_from_layout
 
 
@@ -26,8 +27,13 @@ class Measurement(eqx.Module):
     - `times` (n,) [s]: strictly increasing, uniformly spaced (one sample rate);
     - `data` (n, c): channel values in `units`; NaN = missing sample (excluded from the cost);
     - `channels`, `units`: channel names and SI units (c each);
-    - `speed` [m/s]; `track`: a reference to the track run over (free text, e.g.
-      `erri-low seed=0`); `layout`: the sensor layout as JSON (`layout_description`), or "".
+    - `speed` [m/s]; `track`: the `TrackReference` of the track run over, or `None` if
+      unknown; `layout`: the sensor layout as JSON (`layout_description`), or "";
+      `note`: free text (e.g. the track description of a file from before track references).
+
+    `channels`, `units`, `track`, `layout` and `note` are static metadata: the cost layer reads
+    them when it builds an objective and keeps none of them, so measurements differing only in
+    metadata share the objective's compilation.
     """
 
     times: Float[Array, " n"] = eqx.field(converter=_as_float)
@@ -35,8 +41,9 @@ class Measurement(eqx.Module):
     channels: tuple[str, ...] = eqx.field(static=True, converter=tuple)
     units: tuple[str, ...] = eqx.field(static=True, converter=tuple)
     speed: Float[Array, ""] = eqx.field(converter=_as_float)
-    track: str = eqx.field(default="", static=True)
+    track: TrackReference | None = eqx.field(default=None, static=True)
     layout: str = eqx.field(default="", static=True)
+    note: str = eqx.field(default="", static=True)
 
     def __check_init__(self):
         check_measurement(self)
@@ -97,6 +104,11 @@ def check_measurement(m: Measurement, *, sample_rate: float | None = None) -> No
         raise MeasurementError(
             f"`data` must be finite or NaN (missing); got {data[i, j]} in channel "
             f"{m.channels[j]!r} at t = {times[i]:g} s"
+        )
+    if m.track is not None and not isinstance(m.track, TrackReference):
+        raise MeasurementError(
+            f"`track` must be a TrackReference or None, got {type(m.track).__name__} "
+            f"{m.track!r} (free text belongs in `note`)"
         )
     speed = float(np.asarray(m.speed))
     if not (np.isfinite(speed) and speed > 0):

@@ -1,16 +1,16 @@
 """Sensor readings from a trajectory, and synthetic measurements from known parameters."""
 
-import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
+from .._solve_settings import resolve_settings
 from ..model import BogieModel, accelerations, build_model
 from ..params import BogieParams, ModelOptions
-from ..simulate import Trajectory, simulate
-from ..track import TrackIrregularity
+from ..simulate import SolveSettings, Trajectory, simulate
+from ..track import TrackIrregularity, TrackReference
 from ._layout import check_sensor_names, default_sensor_layout, layout_description
 from ._locations import sample_state
 from ._measurement import Measurement
@@ -57,9 +57,12 @@ def measure(
 
 
 @eqx.filter_jit
-def _clean_channels(params, track, speed, sensors, duration, sample_rate, kwargs):
-    run = simulate(params, track, speed=speed, duration=duration, sample_rate=sample_rate, **kwargs)
-    return run.ts, measure(run, sensors, params, track, options=kwargs["options"]), run.successful
+def _clean_channels(params, track, speed, sensors, duration, sample_rate, options, settings, y0):
+    run = simulate(
+        params, track, speed=speed, duration=duration, sample_rate=sample_rate, y0=y0,
+        options=options, settings=settings,
+    )  # fmt: skip
+    return run.ts, measure(run, sensors, params, track, options=options), run.successful
 
 
 def synthetic_measurement(
@@ -72,13 +75,11 @@ def synthetic_measurement(
     sensors=None,
     key=None,
     noise_scale: float = 1.0,
-    track_name: str = "",
+    track_reference: TrackReference | None = None,
     options: ModelOptions = ModelOptions(),
-    solver: dfx.AbstractSolver = dfx.Tsit5(),
-    stepsize_controller: dfx.AbstractStepSizeController | None = None,
-    max_steps: int = 100_000,
-    dt0: float | None = 1e-3,
+    settings: SolveSettings | None = None,
     y0=None,
+    **solve_options,
 ) -> Measurement:
     """Simulate `params` on `track` and read `sensors` (default `default_sensor_layout(params)`).
 
@@ -87,25 +88,27 @@ def synthetic_measurement(
     - `key`: PRNG key for additive Gaussian noise of standard deviation
       `noise_scale * sensor.noise_std` per channel; `None` gives noise-free data. Sensor biases
       are always added.
-    - `track_name`: the track reference stored in the measurement.
-    - `options`, `solver`, `stepsize_controller`, `max_steps`, `dt0`, `y0`: passed to `simulate`.
+    - `track_reference`: the `TrackReference` of `track`, stored in the measurement (`None`:
+      unknown).
+    - `options`, `y0`, `settings` (`SolveSettings`, default `SolveSettings()`; the solve runs
+      with `throw=False` and a failure raises here), `solve_options` (shorthand for single
+      fields of `settings`): passed to `simulate`.
 
     **Returns:** a `Measurement` whose `layout` describes `sensors`.
 
     **Raises:** `RuntimeError` if the solve fails.
     """
+    if track_reference is not None and not isinstance(track_reference, TrackReference):
+        raise TypeError(
+            f"`track_reference` must be a TrackReference or None, got {track_reference!r}"
+        )
+    settings = resolve_settings(settings, SolveSettings(), **solve_options).replace(throw=False)
     sensors = default_sensor_layout(params) if sensors is None else tuple(sensors)
     layout = layout_description(sensors)
-    kwargs = dict(
-        options=options,
-        solver=solver,
-        stepsize_controller=stepsize_controller,
-        max_steps=max_steps,
-        dt0=dt0,
-        y0=y0,
-        throw=False,
+    y0 = None if y0 is None else np.asarray(y0, dtype=float)
+    ts, clean, ok = _clean_channels(
+        params, track, speed, sensors, duration, sample_rate, options, settings, y0
     )
-    ts, clean, ok = _clean_channels(params, track, speed, sensors, duration, sample_rate, kwargs)
     if not bool(ok):
         raise RuntimeError("the simulation for the synthetic measurement failed (see `simulate`)")
     data = np.asarray(clean)
@@ -118,6 +121,6 @@ def synthetic_measurement(
         channels=tuple(s.name for s in sensors),
         units=tuple(s.unit for s in sensors),
         speed=float(speed),
-        track=track_name,
+        track=track_reference,
         layout=layout,
     )

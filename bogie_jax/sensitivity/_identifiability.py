@@ -4,9 +4,11 @@ With residuals weighted by 1/sigma (the default weights of `bogie_jax.cost`), J 
 negative log-likelihood up to a constant and the Fisher information is F = J_r^T J_r, J_r the
 residual Jacobian. It is reported in physical units (dr/dp) and in relative scaling
 (dr/d ln p, so that parameters of different units compare), with its eigen-decomposition, the
-covariance F^+ (pseudo-inverse), correlations and the collinearity indices of Brun, Reichert and
-Kuensch (2001), "Practical identifiability analysis of large environmental simulation models",
-Water Resources Research 37(4), 1015-1030: gamma_K = 1 / sqrt(min eig(S_K^T S_K)) for the
+covariance F^+ (pseudo-inverse by `bogie_jax.cost.covariance_from_jacobian`, the computation
+fits use; unidentifiable directions reported, not inverted), correlations and the collinearity
+indices of Brun, Reichert and Kuensch (2001), "Practical identifiability analysis of large
+environmental simulation models", Water Resources Research 37(4), 1015-1030:
+gamma_K = 1 / sqrt(min eig(S_K^T S_K)) for the
 column-normalised sensitivity sub-matrix S_K of each parameter subset K (gamma > 10-15: poorly
 identifiable subset; infinite: exactly collinear).
 
@@ -28,7 +30,8 @@ import optimistix as optx
 from jaxtyping import Array, Bool, Float
 
 from ..batch import batch_runner
-from ..identify import LeastSquaresMethod, LeastSquaresProblem, as_problem
+from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
+from ..identify import LeastSquaresMethod, LeastSquaresProblem, as_problem, is_successful
 
 
 CHI2_1_95 = 3.841458820694124  # chi2 quantile, 1 degree of freedom, 0.95
@@ -75,8 +78,8 @@ class ParameterCombination(eqx.Module):
       of |v|^2); `description`: e.g. `+0.71 primary.kz -0.70 primary.ky (relative std 35 %)`.
     """
 
-    eigenvalue: float = eqx.field(static=True)
-    relative_std: float = eqx.field(static=True)
+    eigenvalue: Float[Array, ""]
+    relative_std: Float[Array, ""]
     vector: Float[Array, " n"]
     dominant: tuple[str, ...] = eqx.field(static=True)
     description: str = eqx.field(static=True)
@@ -94,6 +97,7 @@ class FisherInformation(eqx.Module):
       weights; pseudo-inverse taken in relative scaling); `std_errors` (inf for a parameter in
       the null space of F), `relative_std_errors` (std / |p|); `correlation`.
     - `condition_number`: largest / smallest eigenvalue of `fim_relative` (inf if singular).
+    - `uncertainty`: the `Covariance` (in relative scaling: `rank`, `null` directions).
     - `collinearity`: `CollinearityIndices`.
     - `inseparable`: `ParameterCombination`s whose relative std exceeds `max_relative_std`.
     """
@@ -109,7 +113,8 @@ class FisherInformation(eqx.Module):
     std_errors: Float[Array, " n"]
     relative_std_errors: Float[Array, " n"]
     correlation: Float[Array, "n n"]
-    condition_number: float = eqx.field(static=True)
+    condition_number: Float[Array, ""]
+    uncertainty: Covariance
     collinearity: CollinearityIndices
     inseparable: tuple[ParameterCombination, ...]
 
@@ -118,13 +123,6 @@ class FisherInformation(eqx.Module):
         if not self.inseparable:
             return ["every parameter combination is identifiable at this point"]
         return [c.description for c in self.inseparable]
-
-
-def _pinv_sym(a, rcond):
-    w, v = np.linalg.eigh(a)
-    keep = w > rcond * max(float(w.max()), 0.0)
-    inv = np.where(keep, 1.0 / np.where(keep, w, 1.0), 0.0)
-    return (v * inv) @ v.T
 
 
 def collinearity_indices(
@@ -204,32 +202,20 @@ def fisher_from_jacobian(
     fim = jac.T @ jac
     rel_jac = jac * p[None, :]
     fim_rel = rel_jac.T @ rel_jac
-    w, v = np.linalg.eigh(fim_rel)
-    w = np.maximum(w, 0.0)
-    # Pseudo-inverse in scaled coordinates (|p| where p != 0), so that units of very different
-    # size (N/m against N s/m) do not decide which eigenvalues count as zero.
-    scale = np.where(p != 0, np.abs(p), 1.0)
-    scaled = fim * np.outer(scale, scale)
-    cov = _pinv_sym(scaled, rcond) * np.outer(scale, scale)
-    std = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        corr = cov / np.outer(std, std)
-    # A direction with (numerically) no information is unbounded: report it as infinitely uncertain.
-    zero = w <= rcond * max(float(w.max()), np.finfo(float).tiny)
+    # Covariance in relative scaling (d ln p; d p where p = 0), so that units of very different
+    # size (N/m against N s/m) do not decide which eigenvalues count as zero; then physical.
+    scale = np.where(p != 0, p, 1.0)
+    unc = covariance_from_jacobian(jac * scale[None, :], rcond=rcond, scale=scale)
+    w, v, zero = (np.asarray(a) for a in (unc.eigenvalues, unc.directions, unc.null))
+    cov, std, corr = (np.asarray(a) for a in (unc.covariance, unc.std_errors, unc.correlation))
     inseparable = []
     for k in range(n):
         lam = 0.0 if zero[k] else float(w[k])
         dominant, rstd, text = _describe(v[:, k], names, lam)
         if rstd > max_relative_std:
-            inseparable.append(ParameterCombination(lam, rstd, v[:, k], dominant, text))
-    cond = math.inf if zero[0] else float(w[-1] / w[0])
-    ws, vs = np.linalg.eigh(scaled)
-    null_mask = ws <= rcond * max(float(ws.max()), np.finfo(float).tiny)
-    if np.any(null_mask):
-        # covariance of an unidentifiable parameter is unbounded, not the pseudo-inverse's 0
-        null = vs[:, null_mask]
-        loose = np.sum(null**2, axis=1) > 1e-6
-        std = np.where(loose, np.inf, std)
+            inseparable.append(
+                ParameterCombination(np.asarray(lam), np.asarray(rstd), v[:, k], dominant, text)
+            )
     return FisherInformation(
         names=names,
         units=units,
@@ -242,45 +228,19 @@ def fisher_from_jacobian(
         std_errors=std,
         relative_std_errors=np.where(p != 0, std / np.where(p != 0, np.abs(p), 1.0), np.inf),
         correlation=corr,
-        condition_number=cond,
+        condition_number=np.asarray(unc.condition_number),
+        uncertainty=unc,
         collinearity=collinearity_indices(rel_jac, names, max_subset_size),
         inseparable=tuple(inseparable),
     )
 
 
-def plain_problem(problem) -> LeastSquaresProblem:
-    """`problem` as a `LeastSquaresProblem` whose residuals are the objective's own (in forward
-    mode), without the materialised-Jacobian wrapper of `as_problem`: `jax.jacfwd` of the plain
-    residuals pushes the `n` tangents through one solve."""
-    if isinstance(problem, LeastSquaresProblem):
-        return problem
-    problem = _forward_mode(problem)
-    transform = getattr(problem, "selection", None) or getattr(problem, "transform", None)
-    if transform is None or not callable(getattr(problem, "residuals", None)):
-        return as_problem(problem)  # raises the usual TypeError
-    return LeastSquaresProblem(problem.residuals, transform, None)
-
-
-def _forward_mode(problem):
-    """The objective differentiated in forward mode (`ForwardMode` adjoint) where it has one."""
-    with_adjoint = getattr(problem, "with_adjoint", None)
-    if with_adjoint is not None:
-        import diffrax as dfx
-
-        return with_adjoint(dfx.ForwardMode())
-    return problem
-
-
 @eqx.filter_jit
 def _jacobians(problem, theta):
-    res = lambda th: jnp.ravel(problem.residuals(th, problem.args))
-    jac_theta = jax.jacfwd(res)(theta)
-    dphys = jax.vmap(jax.grad(lambda t, i: problem.transform.to_physical(t)[i]), (None, 0))(
-        theta, jnp.arange(theta.size)
-    )
+    _, jac_theta = residual_jacobian(problem, theta, problem.args)
     # The transforms are element-wise: dp/dtheta is diagonal.
-    d = jnp.diagonal(dphys)
-    return jac_theta / d[None, :], problem.transform.to_physical(theta)
+    values, d = jax.jvp(problem.transform.to_physical, (theta,), (jnp.ones_like(theta),))
+    return jac_theta / d[None, :], values
 
 
 def fisher_information(
@@ -296,11 +256,11 @@ def fisher_information(
     (unconstrained coordinates) or at `physical` values (default: the selection's nominal values,
     i.e. theta = 0 for an `Objective`).
 
-    The Jacobian is taken by `jax.jacfwd`, on `objective.with_adjoint(diffrax.ForwardMode())` for
-    an `Objective`. The FIM equals the inverse covariance only with 1/sigma^2 weights (the
+    The Jacobian is `bogie_jax.cost.residual_jacobian` (forward mode, switched on by itself for
+    an `Objective`). The FIM equals the inverse covariance only with 1/sigma^2 weights (the
     default of `make_objective`). Other arguments as `fisher_from_jacobian`.
     """
-    lsq = plain_problem(problem)
+    lsq = as_problem(problem)
     transform = lsq.transform
     names = getattr(transform, "names", None)
     units = getattr(transform, "units", None)
@@ -348,14 +308,14 @@ class ProfileLikelihood(eqx.Module):
     units: tuple[str, ...] = eqx.field(static=True)
     indices: tuple[int, ...] = eqx.field(static=True)
     estimate: Float[Array, " n"]
-    cost_min: float = eqx.field(static=True)
+    cost_min: Float[Array, ""]
     values: Float[Array, "n k"]
     cost: Float[Array, "n k"]
     others: Float[Array, "n k n"]
     failed: Bool[Array, "n k"]
     interval: Float[Array, "n 2"]
-    status: tuple[str, ...] = eqx.field(static=True)
-    threshold: float = eqx.field(static=True)
+    status: tuple[str, ...] = eqx.field(static=True)  # labels: strings cannot be traced
+    threshold: Float[Array, ""]
 
     @property
     def delta_cost(self):
@@ -440,7 +400,7 @@ def profile_likelihood(
     """
     from ._validation import check_positive_int, resolve_names
 
-    lsq = as_problem(_forward_mode(problem))  # LM linearises: forward mode through the solve
+    lsq = as_problem(problem)  # switches an objective to forward mode: LM linearises
     transform = lsq.transform
     lo_t = np.atleast_1d(np.asarray(transform.lower, dtype=float))
     hi_t = np.atleast_1d(np.asarray(transform.upper, dtype=float))
@@ -504,7 +464,7 @@ def profile_likelihood(
     run = batch_runner(refit, chunk_size=chunk_size, devices=devices)
     result = run(members)
     cost, phys, code = result.outputs
-    ok = (np.asarray(code) == int(optx.RESULTS.successful._value)) & ~np.asarray(result.failed)
+    ok = np.asarray(is_successful(code)) & ~np.asarray(result.failed)
     cost = np.where(ok, np.asarray(cost), np.nan).reshape(len(idx), n_points)
     fit_cost = float(eqx.filter_jit(lsq.cost)(theta_hat))
     cost_min = float(np.nanmin(np.concatenate([[fit_cost], cost.ravel()])))
@@ -518,12 +478,12 @@ def profile_likelihood(
         units=tuple(units[i] for i in idx),
         indices=tuple(idx),
         estimate=est,
-        cost_min=cost_min,
+        cost_min=np.asarray(cost_min),
         values=grid,
         cost=cost,
         others=np.asarray(phys).reshape(len(idx), n_points, n),
         failed=~ok.reshape(len(idx), n_points),
         interval=np.asarray(intervals, dtype=float),
         status=tuple(status),
-        threshold=float(threshold),
+        threshold=np.asarray(float(threshold)),
     )

@@ -86,8 +86,8 @@ class SobolIndices(eqx.Module):
     total: Float[Array, " d"]
     first_order_ci: Float[Array, "d 2"]
     total_ci: Float[Array, "d 2"]
-    confidence: float = eqx.field(static=True)
-    n_evaluations: int = eqx.field(static=True)
+    confidence: Float[Array, ""]
+    n_evaluations: Int[Array, ""]
     n_failed: Int[Array, ""]
 
 
@@ -177,8 +177,8 @@ def sobol_indices(
         total=total,
         first_order_ci=first_ci,
         total_ci=total_ci,
-        confidence=confidence,
-        n_evaluations=n * (d + 2),
+        confidence=jnp.asarray(confidence),
+        n_evaluations=jnp.asarray(n * (d + 2)),
         n_failed=jnp.asarray(n_failed, dtype=jnp.int32),
     )
 
