@@ -103,8 +103,7 @@ def _scenario(args):
         duration=args.duration,
         key=jr.PRNGKey(args.seed + 1),
         stepsize_controller=controller,
-        track_name=f"erri-low seed={args.seed} start=-10 m",
-    )
+    )  # the track (faded in from -10 m) is not a TrackReference: none is stored
     return names, at, track, data, controller
 
 
