@@ -44,6 +44,8 @@ def test_one_run_records_every_start(whole):
     assert not run.interrupted and run.resumed == 0 and run.indices == tuple(range(N))
     assert [c.done for c in chunks] == [3, 6, 7] and all(c.total == N for c in chunks)
     assert [len(c.part.costs) for c in chunks] == [3, 3, 1]
+    assert all(c.resumed == 0 and c.run_time <= c.elapsed for c in chunks)
+    assert np.isfinite(chunks[0].eta()) and chunks[-1].eta() == 0.0
     lines = [json.loads(x) for x in path.read_text().splitlines()]
     assert [x["index"] for x in lines] == list(range(N))
     res = run.result

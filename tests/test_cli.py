@@ -1,6 +1,9 @@
 """The `bogie-jax` command line: outputs, one-line errors with exit code 2."""
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -10,8 +13,25 @@ from bogie_jax.cli import main
 
 def test_simulate_writes_npz_csv_and_plot(tmp_path, capsys):
     npz, png = tmp_path / "run.npz", tmp_path / "run.png"
-    code = main(["simulate", "--speed", "40", "--duration", "0.5", "--track", "erri-high",
-                 "--seed", "3", "--sample-rate", "100", "--out", str(npz), "--plot", str(png)])
+    code = main(
+        [
+            "simulate",
+            "--speed",
+            "40",
+            "--duration",
+            "0.5",
+            "--track",
+            "erri-high",
+            "--seed",
+            "3",
+            "--sample-rate",
+            "100",
+            "--out",
+            str(npz),
+            "--plot",
+            str(png),
+        ]
+    )
     assert code == 0
     data = np.load(npz)
     assert data["q"].shape == (51, 10) and data["qdd"].shape == (51, 10)
@@ -62,3 +82,72 @@ def test_demo_writes_data_and_plots(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "critical speed" in out or "stable over the whole range" in out
     assert json.dumps(out)  # printable
+
+
+# --- the console script in a fresh process ----------------------------------------------------
+
+
+def _script(args, env=None, timeout=300):
+    """Run `bogie-jax ARGS` (the installed console script's entry point) in a fresh process."""
+    code = "import sys; from bogie_jax.cli import main; sys.exit(main(sys.argv[1:]))"
+    environ = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_PLATFORMS")}
+    environ.update(env or {})
+    return subprocess.run(
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        env=environ,
+        timeout=timeout,
+    )
+
+
+def test_help_of_every_command_in_a_fresh_process():
+    from bogie_jax.cli import COMMANDS
+
+    top = _script(["--help"])
+    assert top.returncode == 0 and "--no-cache" in top.stdout
+    assert all(name in top.stdout for name in COMMANDS)
+    code = (
+        "import contextlib, io, sys\n"
+        "from bogie_jax.cli import COMMANDS, main\n"
+        "for name in COMMANDS:\n"
+        "    out = io.StringIO()\n"
+        "    with contextlib.redirect_stdout(out):\n"
+        "        try:\n"
+        "            main([name, '--help'])\n"
+        "        except SystemExit as e:\n"
+        "            assert e.code == 0, (name, e.code)\n"
+        "    assert f'usage: bogie-jax {name}' in out.getvalue(), name\n"
+        "    assert '--no-cache' in out.getvalue(), name\n"
+        "print('ok')\n"
+    )
+    each = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert each.returncode == 0 and each.stdout.strip() == "ok", each.stderr
+
+
+def test_first_line_names_devices_and_cache(tmp_path):
+    """A fresh process gets every core as a CPU device (unless XLA_FLAGS is set) and the cache
+    directory of `BOGIE_JAX_CACHE_DIR`; `--no-cache` turns the cache off."""
+    cache = tmp_path / "cache"
+    run = _script(["identify", "--list-params"], {"BOGIE_JAX_CACHE_DIR": str(cache)})
+    assert run.returncode == 0, run.stderr
+    first, *rest = run.stdout.splitlines()
+    n = len(os.sched_getaffinity(0))  # the cores this process may use
+    assert first.startswith("bogie-jax ") and f" on {n} CPU device{'s' if n > 1 else ''} " in first
+    assert f"(float64, cache {cache})" in first or "(float64, cache ~/" in first
+    assert any("yaw_dampers.c" in line for line in rest)
+    run = _script(["--no-cache", "identify", "--list-params"], {"XLA_FLAGS": ""})
+    first = run.stdout.splitlines()[0]
+    assert run.returncode == 0 and " on 1 CPU device (float64, no cache)" in first
+    run = _script(
+        ["identify", "--list-params", "--no-cache"],
+        {"XLA_FLAGS": "--xla_force_host_platform_device_count=3"},
+    )
+    assert " on 3 CPU devices (float64, no cache)" in run.stdout.splitlines()[0]
+
+
+def test_bad_value_in_a_fresh_process_is_one_line_and_exit_2():
+    run = _script(["--no-cache", "identify", "--starts", "0"])
+    assert run.returncode == 2
+    message = "bogie-jax identify: error: `--starts` must be in [1, 100000], got 0"
+    assert run.stderr.strip() == message

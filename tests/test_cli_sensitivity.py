@@ -6,14 +6,19 @@ import json
 import numpy as np
 import pytest
 
-from bogie_jax._cli_sensitivity import add_parser, run
-from bogie_jax.cli import UsageError
+import bogie_jax.cli.sensitivity as command
+from bogie_jax.cli import Progress, UsageError
+from bogie_jax.cli.sensitivity import add_parser
 
 
 def parse(argv):
     parser = argparse.ArgumentParser(prog="bogie-jax")
     add_parser(parser.add_subparsers(dest="command", required=True))
     return parser.parse_args(["sensitivity", *argv])
+
+
+def run(args):
+    return command.run(args, Progress())
 
 
 TINY = ["--speed", "50", "--duration", "0.2", "--sample-rate", "50", "--sensors", "frame-acc"]
@@ -40,12 +45,10 @@ TINY = ["--speed", "50", "--duration", "0.2", "--sample-rate", "50", "--sensors"
     ],
 )
 def test_bad_input_is_a_usage_error_before_evaluation(argv, match, tmp_path, monkeypatch):
-    import bogie_jax.cost
-
     def fail(*a, **k):
         pytest.fail("evaluated although the input was invalid")
 
-    monkeypatch.setattr(bogie_jax.cost, "synthetic_objective", fail)
+    monkeypatch.setattr(command, "synthetic_objective", fail)
     with pytest.raises(UsageError, match=match) as e:
         run(parse([*argv, "--out", str(tmp_path)]))
     assert "\n" not in str(e.value)

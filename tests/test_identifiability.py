@@ -194,7 +194,7 @@ def test_real_objective_fim_is_finite(real_objective):
     assert fim.units == real_objective.selection.units
 
 
-# --- figures (bogie_jax._plot_sensitivity), on analytic results ------------------------------
+# --- figures (bogie_jax.plot), on analytic results -------------------------------------------
 
 
 def test_plots_return_axes_and_figures(data, getkey):
@@ -203,7 +203,7 @@ def test_plots_return_axes_and_figures(data, getkey):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bogie_jax import _plot_sensitivity as plots
+    from bogie_jax import plot as plots
     from bogie_jax.sensitivity import screening_grid, screening_sweeps, sobol_analysis
 
     x, y, p_hat = data

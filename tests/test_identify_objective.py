@@ -22,9 +22,9 @@ import jax.random as jr
 import numpy as np
 import pytest
 
-from bogie_jax import _cli_identify
-from bogie_jax.cli import UsageError
-from bogie_jax.identify import as_problem, fit, fit_multistart
+import bogie_jax.cli.identify as identify_command
+from bogie_jax.cli import Parser, Progress, UsageError
+from bogie_jax.identify import as_problem, fit, fit_multistart, fit_multistart_chunked
 from bogie_jax.identify._batched import batched_fits, stack_objectives
 from bogie_jax.identify._local import statistics
 from bogie_jax.identify._scenarios import relative_errors, scenario_problem
@@ -42,16 +42,16 @@ def clean():
 @pytest.fixture(scope="module")
 def multistart4(clean):
     """Noise-free multistart LM, 4 starts sharded over the 4 host devices (the command's path:
-    `run_chunked` through `batch_runner`, the objective an input of the compiled batch)."""
-    result, interrupted = _cli_identify.run_chunked(
+    `fit_multistart_chunked`, the objective an input of the compiled batch)."""
+    run = fit_multistart_chunked(
         clean.objective,
         key=jr.PRNGKey(0),
         n_starts=N_STARTS,
         chunk=N_STARTS,
         max_steps=MAX_STEPS,
     )
-    assert not interrupted
-    return result
+    assert not run.interrupted
+    return run.result
 
 
 @pytest.mark.slow
@@ -123,11 +123,13 @@ def test_errors_through_entry_points(clean):
 
 
 def _parse(argv):
-    from bogie_jax.cli import _Parser
-
-    parser = _Parser(prog="bogie-jax")
-    _cli_identify.add_parser(parser.add_subparsers(dest="command", parser_class=_Parser))
+    parser = Parser(prog="bogie-jax")
+    identify_command.add_parser(parser.add_subparsers(dest="command", parser_class=Parser))
     return parser.parse_args(["identify", *argv])
+
+
+def _run(args):
+    return identify_command.run(args, Progress())
 
 
 def _args(tmp_path, *extra):
@@ -156,7 +158,7 @@ def _args(tmp_path, *extra):
 @pytest.mark.heavy
 def test_cli_identify(tmp_path, capsys, clean):
     args = _args(tmp_path)
-    assert _cli_identify.run(args) == 0
+    assert _run(args) == 0
     out = capsys.readouterr().out
     assert "starts 4/4 done" in out and "primary.kz" in out and "95% interval" in out
     res = json.loads((tmp_path / "out" / "results.json").read_text())
@@ -177,15 +179,15 @@ def test_cli_identify(tmp_path, capsys, clean):
 def test_cli_interrupt_keeps_finished_starts(tmp_path, monkeypatch, capsys):
     calls = []
 
-    def interrupt(done, total, part, elapsed):
-        calls.append(done)
+    def interrupt(chunk):
+        calls.append(chunk.done)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(_cli_identify, "_progress", interrupt)
+    monkeypatch.setattr(identify_command, "_on_chunk", lambda progress: interrupt)
     # interrupted after the first of two chunks
     args = _args(tmp_path, "--no-plots")
     args.starts = 2 * N_STARTS  # two chunks of N_STARTS (the compiled batch of the test above)
-    assert _cli_identify.run(args) == 130
+    assert _run(args) == 130
     res = json.loads((tmp_path / "out" / "results.json").read_text())
     assert res["interrupted"] and res["n_finished"] == N_STARTS and len(res["starts"]) == N_STARTS
     assert len((tmp_path / "out" / "starts.jsonl").read_text().splitlines()) == N_STARTS
@@ -193,7 +195,7 @@ def test_cli_interrupt_keeps_finished_starts(tmp_path, monkeypatch, capsys):
 
 
 def test_cli_list_params(capsys):
-    assert _cli_identify.run(_parse(["--list-params"])) == 0
+    assert _run(_parse(["--list-params"])) == 0
     out = capsys.readouterr().out
     assert "yaw_dampers.c" in out and "N s/m" in out and "nominal" in out
 
@@ -216,14 +218,14 @@ def test_cli_list_params(capsys):
 def test_cli_bad_values(tmp_path, argv, match):
     args = _parse([*argv, "--out", str(tmp_path / "o")])
     with pytest.raises(UsageError, match=match):
-        _cli_identify.run(args)
+        _run(args)
 
 
 def test_cli_bad_data_file(tmp_path):
     bad = tmp_path / "run.txt"
     bad.write_text("t,a\n0,1\n")
     with pytest.raises(UsageError, match="expected a .npz or .csv file"):
-        _cli_identify.run(_parse(["--data", str(bad), "--out", str(tmp_path / "o")]))
+        _run(_parse(["--data", str(bad), "--out", str(tmp_path / "o")]))
     with pytest.raises(SystemExit):  # --data and --scenario are exclusive (argparse, exit 2)
         _parse(["--data", str(bad), "--scenario", "default"])
 

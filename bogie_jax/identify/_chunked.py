@@ -23,10 +23,7 @@ from ..batch import BatchResult
 from ._batched import batched_fits
 from ._local import LocalOutput
 from ._multistart import MultistartResult, collect, design_starts
-from ._problem import STATUS_NAMES, as_problem
-
-
-_STATUS_CODES = {name: code for code, name in STATUS_NAMES.items()}
+from ._problem import as_problem, results_from_names
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,13 +47,21 @@ class ChunkedMultistart:
 
 @dataclasses.dataclass(frozen=True)
 class ChunkProgress:
-    """Passed to `on_chunk` after every chunk: starts `done` of `total` (resumed ones
-    included), the chunk's own `MultistartResult` `part`, and seconds since the call began."""
+    """Passed to `on_chunk` after every chunk: starts `done` of `total` (`resumed` of them read
+    from the record), the chunk's own `MultistartResult` `part`, seconds since the call began
+    (`elapsed`) and seconds spent running chunks (`run_time`: no compile, no resume)."""
 
     done: int
     total: int
+    resumed: int
     part: MultistartResult
     elapsed: float
+    run_time: float
+
+    def eta(self) -> float:
+        """Seconds left at the mean rate of the chunks run so far."""
+        ran = self.done - self.resumed
+        return self.run_time / ran * (self.total - self.done) if ran else float("nan")
 
 
 def _append(path: Path, indices, part: MultistartResult, out: LocalOutput) -> None:
@@ -107,7 +112,7 @@ def _outputs_from_records(records: list[dict]) -> BatchResult:
     """The batch outputs `(LocalOutput, cost)` of recorded starts."""
     out = LocalOutput(
         theta=jnp.asarray([r["theta"] for r in records], float),
-        result=jnp.asarray([_STATUS_CODES[r["status"]] for r in records], jnp.int32),
+        result=results_from_names([r["status"] for r in records]),
         num_steps=jnp.asarray([r["num_steps"] for r in records]),
         num_fn_evals=jnp.asarray([r["num_fn_evals"] for r in records]),
         num_jac_evals=jnp.asarray([r["num_jac_evals"] for r in records]),
@@ -180,6 +185,7 @@ def fit_multistart_chunked(
             t0 = time.perf_counter()
             runner.compile(batched, thetas[jnp.asarray(todo[:width])])
             compile_time = time.perf_counter() - t0
+        t_run = time.perf_counter()
         for k in range(math.ceil(len(todo) / chunk)):
             idx = todo[k * chunk : (k + 1) * chunk]
             padded = idx + [idx[-1]] * (width - len(idx))
@@ -199,7 +205,8 @@ def fit_multistart_chunked(
             pieces.append((idx, batch))
             n_done += len(idx)
             if on_chunk is not None:
-                on_chunk(ChunkProgress(n_done, n_starts, part, time.perf_counter() - tic))
+                now = time.perf_counter()
+                on_chunk(ChunkProgress(n_done, n_starts, resumed, part, now - tic, now - t_run))
     except KeyboardInterrupt:
         interrupted = True
     result, indices = None, []

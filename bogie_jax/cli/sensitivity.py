@@ -1,14 +1,31 @@
 """`bogie-jax sensitivity`: screening, Sobol indices, Fisher information and profile likelihood
 of the least-squares cost on synthetic data (paper sections 4.2 and 6.1).
 
-Registered in `bogie_jax.cli` by `add_parser(subparsers)` and `run(args)`. Heavy imports (JAX,
-matplotlib) happen inside `run`, after every input is checked.
+Every input is checked before anything is simulated; each analysis writes DIR/results.json and
+PNG figures, and reports its stages as `[k/n] ... (t = s)`.
 """
 
-import time
+import json
+from pathlib import Path
 
+import jax.random as jr
+import matplotlib.pyplot as plt
+import numpy as np
 
-METHODS = ("screening", "sobol", "fim", "profile")
+from ..cost import select_parameters, synthetic_objective
+from ..identify import fit
+from ..params import manchester_benchmark
+from ..plot import (
+    plot_cost_surface,
+    plot_fim_eigenvalues,
+    plot_profiles,
+    plot_sobol_indices,
+    plot_sweeps,
+)
+from ..sensitivity import sensitivity_grid, sensor_layouts
+from ._common import UsageError, split_names
+from ._names import default_parameters, lookup, names as table_names
+from ._track import TRACK_HELP, build_track, track_reference
 
 
 def add_parser(subparsers):
@@ -23,13 +40,21 @@ def add_parser(subparsers):
         "the Fisher information with collinearity indices (fim), or profile likelihoods with "
         "95 %% intervals (profile). Writes DIR/results.json and PNG figures.",
     )
-    p.add_argument("--method", required=True, choices=METHODS, help="analysis to run")
+    p.add_argument(
+        "--method",
+        default="fim",
+        choices=table_names("analysis"),
+        help="analysis to run (default fim)",
+    )
     p.add_argument(
         "--params",
-        required=True,
-        help="comma-separated parameter names (e.g. primary.kz,yaw_dampers.c)",
+        default=",".join(default_parameters()),
+        help="comma-separated parameter names (default: the default identification "
+        f"scenario's, {','.join(default_parameters())})",
     )
-    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument(
+        "--out", default="sensitivity_out", help="output directory (default sensitivity_out)"
+    )
     p.add_argument(
         "--n",
         type=int,
@@ -55,26 +80,18 @@ def add_parser(subparsers):
     p.add_argument(
         "--sensors",
         default="default",
-        help="sensor layout: default | displacement | frame-acc | frame+axlebox-acc",
+        help=f"sensor layout: {' | '.join(table_names('sensors'))} (default default)",
     )
-    p.add_argument(
-        "--track", default="erri-low", help="erri-low | erri-high | fra-1..fra-6 (default erri-low)"
-    )
+    p.add_argument("--track", default="erri-low", help=f"{TRACK_HELP} (default erri-low)")
     p.add_argument("--noise", action="store_true", help="add sensor noise to the synthetic data")
     p.add_argument("--chunk", type=int, default=None, help="vmap chunk size of the batch runner")
     p.add_argument("--seed", type=int, default=0, help="PRNG seed (track, noise, Sobol scrambling)")
     return p
 
 
-def _split(text: str) -> list[str]:
-    return [t.strip() for t in text.split(",") if t.strip()]
-
-
 def _parse_bounds(text: str, names) -> dict:
-    from .cli import UsageError
-
     bounds = {}
-    for item in _split(text):
+    for item in split_names(text):
         name, sep, rng = item.partition("=")
         lo_s, sep2, hi_s = rng.partition(":")
         if not sep or not sep2:
@@ -98,23 +115,17 @@ def _parse_bounds(text: str, names) -> dict:
 
 def _check(args):
     """Every check that needs no evaluation; returns (params, names, bounds)."""
-    from .cli import UsageError
-    from .cost import select_parameters
-    from .params import manchester_benchmark
-    from .sensitivity import LAYOUTS
-    from .sensitivity._validation import check_power_of_two
-
     if args.speed <= 0 or args.duration <= 0 or args.sample_rate <= 0:
         raise UsageError("`--speed`, `--duration` and `--sample-rate` must be > 0")
     if args.duration * args.sample_rate < 2:
         raise UsageError("`--duration` x `--sample-rate` must give at least 2 samples")
-    if args.sensors not in LAYOUTS:
-        raise UsageError(f"`--sensors` must be one of {', '.join(LAYOUTS)}, got {args.sensors!r}")
+    lookup("sensors", args.sensors)
     if args.method == "sobol":
-        try:
-            check_power_of_two("--n", args.n)
-        except (TypeError, ValueError) as e:
-            raise UsageError(str(e)) from None
+        if args.n < 2 or args.n & (args.n - 1):
+            raise UsageError(
+                f"`--n` must be a power of two >= 2 (the balance properties of a Sobol' design "
+                f"hold only then), got {args.n}"
+            )
     lo_grid = 3 if args.method == "profile" else 2
     if args.grid < lo_grid:
         raise UsageError(
@@ -122,7 +133,7 @@ def _check(args):
         )
     if args.chunk is not None and args.chunk < 1:
         raise UsageError(f"`--chunk` must be >= 1, got {args.chunk}")
-    names = _split(args.params)
+    names = split_names(args.params)
     if args.method == "screening" and len(names) < 1:
         raise UsageError("`--params` must name at least one parameter")
     params = manchester_benchmark()
@@ -139,43 +150,33 @@ def _check(args):
     return params, names, bounds
 
 
-class _Progress:
-    def __init__(self, n_stages: int):
-        self.n, self.k, self.t0 = n_stages, 0, time.perf_counter()
+class _Stages:
+    """`[k/n] text (t = s)` lines: stage k of n done, `t` since the command began."""
+
+    def __init__(self, progress, n_stages: int):
+        self.progress, self.n, self.k = progress, n_stages, 0
 
     def __call__(self, text: str):
         self.k += 1
-        print(f"[{self.k}/{self.n}] {text} (t = {time.perf_counter() - self.t0:.1f} s)", flush=True)
+        self.progress.say(f"[{self.k}/{self.n}] {text} (t = {self.progress.elapsed():.1f} s)")
+
+    def compiling(self, what: str):
+        self.progress.compiling(what)
 
 
-def run(args) -> int:
+def run(args, progress) -> int:
     """Run `bogie-jax sensitivity`; returns the exit code (raises `UsageError` on bad input)."""
-    import json
-    from pathlib import Path
-
     params, names, bounds = _check(args)
-
-    import jax.random as jr
-    import matplotlib
-    import numpy as np
-
-    matplotlib.use("Agg")
-    from . import _plot_sensitivity as plots
-    from ._tracks import run_track
-    from .cli import UsageError
-    from .cost import synthetic_objective
-    from .sensitivity import sensor_layouts
-
+    analyse = lookup("analysis", args.method, "--method")
     out = Path(args.out)
     stages = {"screening": 3, "sobol": 2, "fim": 2, "profile": 3}[args.method]
-    progress = _Progress(stages + 1)
+    stage = _Stages(progress, stages + 1)
     sensors = sensor_layouts(params)[args.sensors]
-    try:
-        track = run_track(
-            args.track, params, seed=args.seed, speed=args.speed, duration=args.duration
-        )
-    except ValueError as e:
-        raise UsageError(str(e)) from None
+    reference = track_reference(
+        args.track, params, seed=args.seed, speed=args.speed, duration=args.duration
+    )
+    track = build_track(reference)
+    stage.compiling("the synthetic measurement")
     objective, _ = synthetic_objective(
         params,
         track,
@@ -185,10 +186,10 @@ def run(args) -> int:
         sample_rate=args.sample_rate,
         sensors=sensors,
         key=jr.PRNGKey(args.seed + 1) if args.noise else None,
-        track_name=f"{args.track} seed={args.seed}",
+        track_reference=reference,
         bounds=bounds,
     )
-    progress(
+    stage(
         f"synthetic objective: {len(names)} parameters, {args.sensors} sensors "
         f"({len(sensors)} channels), {args.duration:g} s at {args.speed:g} m/s"
     )
@@ -204,20 +205,16 @@ def run(args) -> int:
         "settings": {k: v for k, v in vars(args).items() if k != "func"},
     }
     figures = {}
-    ANALYSES[args.method](args, objective, results, figures, progress, plots)
+    ANALYSES[args.method](args, objective, results, figures, stage, analyse)
     (out / "results.json").write_text(json.dumps(_jsonable(results), indent=1))
     for name, fig in figures.items():
         fig.savefig(out / name, dpi=110)
-    import matplotlib.pyplot as plt
-
     plt.close("all")
-    progress(f"wrote {out / 'results.json'} and {', '.join(figures) or 'no figures'}")
+    stage(f"wrote {out / 'results.json'} and {', '.join(figures) or 'no figures'}")
     return 0
 
 
 def _jsonable(x):
-    import numpy as np
-
     if isinstance(x, dict):
         return {k: _jsonable(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
@@ -230,12 +227,10 @@ def _jsonable(x):
     return x
 
 
-def _screening(args, objective, results, figures, progress, plots):
-    import numpy as np
-
-    from .sensitivity import sensitivity_grid, sensitivity_sweeps
-
-    sweeps = sensitivity_sweeps(objective, n_points=args.grid, chunk_size=args.chunk)
+def _screening(args, objective, results, figures, progress, sweep):
+    n_solves = len(objective.selection.names) * args.grid
+    progress.compiling(f"the sweeps ({n_solves} solves)")
+    sweeps = sweep(objective, n_points=args.grid, chunk_size=args.chunk)
     progress(
         f"sweeps: {len(sweeps.names)} x {args.grid} solves, {int(np.sum(sweeps.failed))} failed"
     )
@@ -245,9 +240,10 @@ def _screening(args, objective, results, figures, progress, plots):
         "cost": sweeps.outputs,
         "failed": sweeps.failed,
     }
-    figures["sweeps.png"] = plots.plot_sweeps(sweeps, all_names=objective.selection.names).figure
+    figures["sweeps.png"] = plot_sweeps(sweeps, all_names=objective.selection.names).figure
     names = objective.selection.names
     if len(names) >= 2:
+        progress.compiling(f"the cost surface ({args.grid**2} solves)")
         grid = sensitivity_grid(
             objective, params=(names[0], names[1]), n_points=args.grid, chunk_size=args.chunk
         )
@@ -262,17 +258,15 @@ def _screening(args, objective, results, figures, progress, plots):
             "cost": grid.outputs,
             "failed": grid.failed,
         }
-        figures["cost_surface.png"] = plots.plot_cost_surface(grid)
+        figures["cost_surface.png"] = plot_cost_surface(grid)
     else:
         progress("cost surface skipped (needs two parameters)")
 
 
-def _sobol(args, objective, results, figures, progress, plots):
-    import jax.random as jr
-
-    from .sensitivity import sensitivity_sobol
-
-    s = sensitivity_sobol(objective, n=args.n, key=jr.PRNGKey(args.seed + 2), chunk_size=args.chunk)
+def _sobol(args, objective, results, figures, progress, sobol):
+    d = len(objective.selection.names)
+    progress.compiling(f"the Sobol sample ({args.n * (d + 2)} solves)")
+    s = sobol(objective, n=args.n, key=jr.PRNGKey(args.seed + 2), chunk_size=args.chunk)
     progress(f"Sobol indices: {s.n_evaluations} solves, {int(s.n_failed)} failed")
     results["sobol"] = {
         "first_order": s.first_order,
@@ -283,7 +277,7 @@ def _sobol(args, objective, results, figures, progress, plots):
         "n_evaluations": s.n_evaluations,
         "n_failed": int(s.n_failed),
     }
-    figures["sobol.png"] = plots.plot_sobol_indices(s).figure
+    figures["sobol.png"] = plot_sobol_indices(s).figure
 
 
 def _fim_dict(f):
@@ -306,27 +300,21 @@ def _fim_dict(f):
     }
 
 
-def _fim(args, objective, results, figures, progress, plots):
-    from .sensitivity import fisher_information
-
+def _fim(args, objective, results, figures, progress, fisher_information):
+    progress.compiling("the residual Jacobian (forward mode)")
     f = fisher_information(objective)
     progress(
         f"Fisher information at the nominal parameters: condition {f.condition_number:.3g}; "
         + "; ".join(f.summary())
     )
     results["fim"] = _fim_dict(f)
-    figures["fim_eigenvalues.png"] = plots.plot_fim_eigenvalues(f).figure
+    figures["fim_eigenvalues.png"] = plot_fim_eigenvalues(f).figure
 
 
-def _profile(args, objective, results, figures, progress, plots):
-    import diffrax as dfx
-    import numpy as np
-
-    from .identify import fit
-    from .sensitivity import profile_likelihood
-
+def _profile(args, objective, results, figures, progress, profile_likelihood):
     if args.noise:
-        best = fit(objective.with_adjoint(dfx.ForwardMode()), method="lm", throw=False)
+        progress.compiling("the LM fit")
+        best = fit(objective, method="lm", throw=False)
         estimate = best.estimates
         progress(f"fit: cost {float(best.cost):.4g}, status {best.status_name}")
         results["fit"] = {
@@ -337,6 +325,7 @@ def _profile(args, objective, results, figures, progress, plots):
     else:
         estimate = np.asarray(objective.selection.nominal)
         progress("noise-free data: the true (nominal) parameters are the best fit")
+    progress.compiling(f"the profiles ({len(objective.selection.names) * args.grid} fits)")
     prof = profile_likelihood(objective, estimate, n_points=args.grid, chunk_size=args.chunk)
     progress("profiles: " + ", ".join(f"{n} {s}" for n, s in zip(prof.names, prof.status)))
     results["profile"] = {
@@ -349,7 +338,8 @@ def _profile(args, objective, results, figures, progress, plots):
         "threshold": prof.threshold,
         "cost_min": prof.cost_min,
     }
-    figures["profiles.png"] = plots.plot_profiles(prof)
+    figures["profiles.png"] = plot_profiles(prof)
 
 
+# the command's writer of each analysis (the analysis itself: `lookup("analysis", name)`)
 ANALYSES = {"screening": _screening, "sobol": _sobol, "fim": _fim, "profile": _profile}

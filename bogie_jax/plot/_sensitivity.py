@@ -6,19 +6,12 @@ figure, for several panels). Inputs are the result modules of `bogie_jax.sensiti
 
 import numpy as np
 
-
-def _axes(ax, projection=None, figsize=(7, 4)):
-    import matplotlib.pyplot as plt
-
-    if ax is not None:
-        return ax
-    fig = plt.figure(figsize=figsize)
-    return fig.add_subplot(111, projection=projection)
+from ._common import get_axes
 
 
 def plot_sobol_indices(indices, ax=None, *, title: str | None = None):
     """Bars of first-order and total Sobol indices with their bootstrap intervals."""
-    ax = _axes(ax, figsize=(max(5, 0.8 * len(indices.names) + 2), 4))
+    ax = get_axes(ax, figsize=(max(5, 0.8 * len(indices.names) + 2), 4))
     names = indices.names
     x = np.arange(len(names))
     w = 0.38
@@ -37,7 +30,6 @@ def plot_sobol_indices(indices, ax=None, *, title: str | None = None):
     ax.legend(fontsize=8)
     ax.grid(True, axis="y", alpha=0.3)
     ax.set_title(title or f"Sobol indices ({int(100 * indices.confidence)} % bootstrap intervals)")
-    ax.figure.tight_layout()
     return ax
 
 
@@ -72,7 +64,7 @@ def plot_sweeps(sweeps, ax=None, *, label: str = "cost J", all_names=None):
     """One line per swept parameter of a `ScreeningSweeps`. With `all_names` (the names of every
     parameter, in the order of `sweeps.nominal`, e.g. `objective.selection.names`) the x axis is
     the value relative to its nominal value, so sweeps of different units share one axes."""
-    ax = _axes(ax)
+    ax = get_axes(ax)
     values, outputs = np.asarray(sweeps.values), np.asarray(sweeps.outputs)
     nominal = np.asarray(sweeps.nominal)
     for k, name in enumerate(sweeps.names):
@@ -126,7 +118,7 @@ def plot_fim_eigenvalues(fim, ax=None, *, max_relative_std: float = 0.1):
     """Bars of the eigenvalues of the relative Fisher information (log scale), labelled by each
     eigenvector's dominant parameters; the level below which a combination has a relative std
     above `max_relative_std` is marked."""
-    ax = _axes(ax, figsize=(max(5, 0.9 * len(fim.names) + 2), 4.2))
+    ax = get_axes(ax, figsize=(max(5, 0.9 * len(fim.names) + 2), 4.2))
     w = np.asarray(fim.eigenvalues)
     v = np.asarray(fim.eigenvectors)
     names = fim.names
@@ -152,5 +144,4 @@ def plot_fim_eigenvalues(fim, ax=None, *, max_relative_std: float = 0.1):
     ax.set_title(f"Fisher information eigenvalues (condition {fim.condition_number:.2g})")
     ax.legend(fontsize=8)
     ax.grid(True, axis="y", alpha=0.3)
-    ax.figure.tight_layout()
     return ax

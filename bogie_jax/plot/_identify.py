@@ -5,13 +5,7 @@ matplotlib is imported lazily; every function takes `ax=None` (a new figure) and
 
 import numpy as np
 
-
-def _axes(ax, figsize):
-    if ax is None:
-        import matplotlib.pyplot as plt
-
-        _, ax = plt.subplots(figsize=figsize, layout="constrained")
-    return ax
+from ._common import get_axes
 
 
 def plot_waterfall(costs, failed=None, *, ax=None, label=None):
@@ -22,7 +16,7 @@ def plot_waterfall(costs, failed=None, *, ax=None, label=None):
     **Arguments:** `costs` (N,); `failed` (N,) bool or None; `ax`; `label` for a legend.
     **Returns:** the axes.
     """
-    ax = _axes(ax, (6, 3.5))
+    ax = get_axes(ax, (6, 3.5))
     costs = np.asarray(costs, dtype=float)
     bad = np.zeros(costs.shape, bool) if failed is None else np.array(failed, bool)
     bad |= ~np.isfinite(costs)
@@ -52,7 +46,7 @@ def plot_estimates(names, estimates, ci95, *, truth=None, nominal=None, ax=None)
     estimates = np.asarray(estimates, dtype=float)
     ci = np.asarray(ci95, dtype=float).reshape(-1, 2)
     ref = np.asarray(truth if truth is not None else nominal, dtype=float)
-    ax = _axes(ax, (6, 0.45 * len(names) + 1.6))
+    ax = get_axes(ax, (6, 0.45 * len(names) + 1.6))
     y = np.arange(len(names))[::-1]
     rel, lo, hi = estimates / ref, ci[:, 0] / ref, ci[:, 1] / ref
     ax.errorbar(

@@ -1,0 +1,17 @@
+"""Matplotlib figures, one module per family: a run (trajectory, stability), gradient checks,
+identification and sensitivity. matplotlib is imported when a figure is drawn; nothing in the
+core imports this package. Every function taking `ax=None` draws on a new figure otherwise."""
+
+from ._gradients import (
+    plot_gradient_components as plot_gradient_components,
+    plot_gradient_cost as plot_gradient_cost,
+)
+from ._identify import plot_estimates as plot_estimates, plot_waterfall as plot_waterfall
+from ._sensitivity import (
+    plot_cost_surface as plot_cost_surface,
+    plot_fim_eigenvalues as plot_fim_eigenvalues,
+    plot_profiles as plot_profiles,
+    plot_sobol_indices as plot_sobol_indices,
+    plot_sweeps as plot_sweeps,
+)
+from ._trajectory import plot_simulation as plot_simulation, plot_stability as plot_stability
