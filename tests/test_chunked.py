@@ -43,7 +43,8 @@ def test_one_run_records_every_start(whole):
     run, path, chunks = whole
     assert not run.interrupted and run.resumed == 0 and run.indices == tuple(range(N))
     assert [c.done for c in chunks] == [3, 6, 7] and all(c.total == N for c in chunks)
-    assert [len(c.part.costs) for c in chunks] == [3, 3, 1]
+    assert [len(c.costs) for c in chunks] == [3, 3, 1]
+    assert [r["start"] for c in chunks for r in c.records] == run.result.starts.tolist()
     assert all(c.resumed == 0 and c.run_time <= c.elapsed for c in chunks)
     assert np.isfinite(chunks[0].eta()) and chunks[-1].eta() == 0.0
     lines = [json.loads(x) for x in path.read_text().splitlines()]
@@ -51,7 +52,8 @@ def test_one_run_records_every_start(whole):
     res = run.result
     assert len(res.costs) == N and res.best is not None
     np.testing.assert_allclose(res.best.estimates, [1.0, 0.5], atol=1e-6)
-    assert run.compile_time > 0 and run.wall_time >= run.compile_time
+    assert run.compile_time > 0 and run.statistics_time > 0
+    assert run.wall_time >= run.compile_time + run.statistics_time
 
 
 def test_resume_after_interrupt_gives_the_same_result(whole, tmp_path):

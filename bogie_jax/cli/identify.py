@@ -216,8 +216,8 @@ def _on_chunk(progress):
     """After every chunk: starts done / total, the chunk's best cost and failures, an ETA."""
 
     def report(chunk):
-        costs = np.where(chunk.part.failed, np.inf, chunk.part.costs)
-        note = f"chunk best cost {np.min(costs):.6g}, {int(np.sum(chunk.part.failed))} failed"
+        costs = np.where(chunk.failed, np.inf, chunk.costs)
+        note = f"chunk best cost {np.min(costs):.6g}, {int(np.sum(chunk.failed))} failed"
         progress.done(chunk.done, chunk.total, "starts", note, eta=chunk.eta())
 
     return report
@@ -262,8 +262,11 @@ def run(args, progress) -> int:
     if args.list_params:
         progress.say(list_params(lookup("vehicle", args.vehicle)()))
         return 0
+    source = "the data" if args.data is not None else "the synthetic measurement"
+    progress.compiling(f"{source} and the objective")
     try:
         objective, truth, desc = build_problem(args)
+        data_time = progress.elapsed()
     except ValueError as e:  # unknown/empty names, bad data file (MeasurementError), bad track
         raise UsageError(str(e)) from None
     out = Path(args.out)
@@ -324,8 +327,10 @@ def run(args, progress) -> int:
         progress.say("wrote " + ", ".join(str(p) for p in paths))
     total = progress.elapsed()
     share = chunked.compile_time / total if total > 0 else 0.0
+    fits = chunked.wall_time - chunked.compile_time - chunked.statistics_time
     progress.say(
-        f"total {total:.1f} s, of which compiling the batch {chunked.compile_time:.1f} s "
-        f"({100 * share:.0f} %)"
+        f"total {total:.1f} s: compiling the batch {chunked.compile_time:.1f} s "
+        f"({100 * share:.0f} %), data and objective {data_time:.1f} s, fits {fits:.1f} s, "
+        f"statistics {chunked.statistics_time:.1f} s"
     )
     return 130 if chunked.interrupted else 0

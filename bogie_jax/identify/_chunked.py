@@ -23,7 +23,7 @@ from ..batch import BatchResult
 from ._batched import batched_fits
 from ._local import LocalOutput
 from ._multistart import MultistartResult, collect, design_starts
-from ._problem import as_problem, results_from_names
+from ._problem import as_problem, results_from_names, status_names
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,7 +34,9 @@ class ChunkedMultistart:
     - `indices`: design index of each of `result`'s starts;
     - `interrupted`: a `KeyboardInterrupt` stopped the run (finished chunks are kept);
     - `resumed`: starts read back from the record instead of run;
-    - `compile_time`, `wall_time` [s]: the batch's compile and this call's whole time.
+    - `compile_time`, `statistics_time`, `wall_time` [s]: the batch's compile, the final
+      statistics (clusters and the best fit's covariance, compiled on a first call) and this
+      call's whole time.
     """
 
     result: MultistartResult | None
@@ -42,19 +44,23 @@ class ChunkedMultistart:
     interrupted: bool
     resumed: int
     compile_time: float
+    statistics_time: float
     wall_time: float
 
 
 @dataclasses.dataclass(frozen=True)
 class ChunkProgress:
     """Passed to `on_chunk` after every chunk: starts `done` of `total` (`resumed` of them read
-    from the record), the chunk's own `MultistartResult` `part`, seconds since the call began
-    (`elapsed`) and seconds spent running chunks (`run_time`: no compile, no resume)."""
+    from the record), the chunk's final `costs` and `failed` flags and its per-start `records`
+    (as `MultistartResult.records`), seconds since the call began (`elapsed`) and seconds spent
+    running chunks (`run_time`: no compile, no resume)."""
 
     done: int
     total: int
     resumed: int
-    part: MultistartResult
+    costs: np.ndarray
+    failed: np.ndarray
+    records: list[dict]
     elapsed: float
     run_time: float
 
@@ -64,8 +70,28 @@ class ChunkProgress:
         return self.run_time / ran * (self.total - self.done) if ran else float("nan")
 
 
-def _append(path: Path, indices, part: MultistartResult, out: LocalOutput) -> None:
-    """One line per start: `part`'s record plus what rebuilds its output exactly (`theta`)."""
+def _chunk_records(problem, thetas, batch: BatchResult) -> list[dict]:
+    """`MultistartResult.records` of one chunk, without its statistics (no Jacobian)."""
+    out, costs = batch.outputs
+    to_physical = jax.vmap(problem.transform.to_physical)
+    starts, ends = np.asarray(to_physical(thetas)), np.asarray(to_physical(out.theta))
+    status = status_names(out.result)
+    return [
+        dict(
+            start=starts[j].tolist(),
+            end=ends[j].tolist(),
+            cost=float(costs[j]),
+            status=str(status[j]),
+            failed=bool(batch.failed[j]),
+            num_steps=int(out.num_steps[j]),
+            num_fn_evals=int(out.num_fn_evals[j]),
+        )
+        for j in range(len(starts))
+    ]
+
+
+def _append(path: Path, indices, records: list[dict], out: LocalOutput) -> None:
+    """One line per start: its record plus what rebuilds its output exactly (`theta`)."""
     lines = [
         json.dumps(
             {
@@ -75,7 +101,7 @@ def _append(path: Path, indices, part: MultistartResult, out: LocalOutput) -> No
                 "num_jac_evals": int(out.num_jac_evals[j]),
             }
         )
-        for j, (i, rec) in enumerate(zip(indices, part.records()))
+        for j, (i, rec) in enumerate(zip(indices, records))
     ]
     with path.open("a") as f:
         f.write("".join(line + "\n" for line in lines))
@@ -191,25 +217,20 @@ def fit_multistart_chunked(
             padded = idx + [idx[-1]] * (width - len(idx))
             batch = runner(batched, thetas[jnp.asarray(padded)])
             batch = jax.tree.map(lambda x: x[: len(idx)], batch)
-            part = collect(
-                problem,
-                thetas[jnp.asarray(idx)],
-                batch,
-                0.0,
-                cluster_tol=cluster_tol,
-                bound_tol=bound_tol,
-                throw=False,
-            )
+            records = _chunk_records(problem, thetas[jnp.asarray(idx)], batch)
             if path is not None:
-                _append(path, idx, part, batch.outputs[0])
+                _append(path, idx, records, batch.outputs[0])
             pieces.append((idx, batch))
             n_done += len(idx)
             if on_chunk is not None:
                 now = time.perf_counter()
-                on_chunk(ChunkProgress(n_done, n_starts, resumed, part, now - tic, now - t_run))
+                costs = np.array([r["cost"] for r in records])
+                failed = np.array([r["failed"] for r in records])
+                progress = (n_done, n_starts, resumed, costs, failed, records)
+                on_chunk(ChunkProgress(*progress, now - tic, now - t_run))
     except KeyboardInterrupt:
         interrupted = True
-    result, indices = None, []
+    result, indices, t_stats = None, [], time.perf_counter()
     if pieces:
         indices = np.concatenate([np.asarray(i, int) for i, _ in pieces])
         order = np.argsort(indices)
@@ -224,5 +245,7 @@ def fit_multistart_chunked(
             bound_tol=bound_tol,
             throw=False,
         )
-    wall = time.perf_counter() - tic
-    return ChunkedMultistart(result, tuple(indices), interrupted, resumed, compile_time, wall)
+    now = time.perf_counter()
+    return ChunkedMultistart(
+        result, tuple(indices), interrupted, resumed, compile_time, now - t_stats, now - tic
+    )
