@@ -6,6 +6,11 @@ from ._annealing import (
     fit_hybrid as fit_hybrid,
     simulated_annealing as simulated_annealing,
 )
+from ._batched import (
+    BatchedFits as BatchedFits,
+    batched_fits as batched_fits,
+    clear_runner_cache as clear_runner_cache,
+)
 from ._chunked import (
     ChunkedMultistart as ChunkedMultistart,
     ChunkProgress as ChunkProgress,

@@ -74,15 +74,24 @@ class ParameterCombination(eqx.Module):
     - `relative_std`: 1 / sqrt(eigenvalue), the standard deviation of the combination
       sum_i v_i ln p_i (0.1 = about 10 %; inf for an exact collinearity);
     - `vector`: `(n,)` unit eigenvector;
-    - `dominant`: names of the parameters that make up most of it (largest |v_i|, covering 90 %
-      of |v|^2); `description`: e.g. `+0.71 primary.kz -0.70 primary.ky (relative std 35 %)`.
+    - `names`: the parameters (static: the labels of `vector`);
+    - `dominant` (property): names of the parameters that make up most of it (largest |v_i|,
+      covering 90 % of |v|^2); `description` (property): e.g.
+      `+0.71 ln primary.kz -0.70 ln primary.ky (relative std 35 %)`.
     """
 
     eigenvalue: Float[Array, ""]
     relative_std: Float[Array, ""]
     vector: Float[Array, " n"]
-    dominant: tuple[str, ...] = eqx.field(static=True)
-    description: str = eqx.field(static=True)
+    names: tuple[str, ...] = eqx.field(static=True)
+
+    @property
+    def dominant(self) -> tuple[str, ...]:
+        return _describe(self.vector, self.names, float(self.eigenvalue))[0]
+
+    @property
+    def description(self) -> str:
+        return _describe(self.vector, self.names, float(self.eigenvalue))[2]
 
 
 class FisherInformation(eqx.Module):
@@ -99,7 +108,12 @@ class FisherInformation(eqx.Module):
     - `condition_number`: largest / smallest eigenvalue of `fim_relative` (inf if singular).
     - `uncertainty`: the `Covariance` (in relative scaling: `rank`, `null` directions).
     - `collinearity`: `CollinearityIndices`.
-    - `inseparable`: `ParameterCombination`s whose relative std exceeds `max_relative_std`.
+    - `max_relative_std`: the threshold of `inseparable` (property): the
+      `ParameterCombination`s whose relative std exceeds it (eigenvalues counted as zero by
+      `uncertainty.null` have infinite relative std).
+
+    Every field is fixed in structure by the parameter names: results at different points share
+    one tree structure (no recompilation of a function that takes them).
     """
 
     names: tuple[str, ...] = eqx.field(static=True)
@@ -116,7 +130,21 @@ class FisherInformation(eqx.Module):
     condition_number: Float[Array, ""]
     uncertainty: Covariance
     collinearity: CollinearityIndices
-    inseparable: tuple[ParameterCombination, ...]
+    max_relative_std: Float[Array, ""]
+
+    @property
+    def inseparable(self) -> tuple[ParameterCombination, ...]:
+        w, v = np.asarray(self.eigenvalues), np.asarray(self.eigenvectors)
+        zero = np.asarray(self.uncertainty.null)
+        out = []
+        for k in range(w.size):
+            lam = 0.0 if zero[k] else float(w[k])
+            _, rstd, _ = _describe(v[:, k], self.names, lam)
+            if rstd > float(self.max_relative_std):
+                out.append(
+                    ParameterCombination(np.asarray(lam), np.asarray(rstd), v[:, k], self.names)
+                )
+        return tuple(out)
 
     def summary(self) -> list[str]:
         """Readable lines: the combinations the measurements cannot separate."""
@@ -206,16 +234,8 @@ def fisher_from_jacobian(
     # size (N/m against N s/m) do not decide which eigenvalues count as zero; then physical.
     scale = np.where(p != 0, p, 1.0)
     unc = covariance_from_jacobian(jac * scale[None, :], rcond=rcond, scale=scale)
-    w, v, zero = (np.asarray(a) for a in (unc.eigenvalues, unc.directions, unc.null))
+    w, v = np.asarray(unc.eigenvalues), np.asarray(unc.directions)
     cov, std, corr = (np.asarray(a) for a in (unc.covariance, unc.std_errors, unc.correlation))
-    inseparable = []
-    for k in range(n):
-        lam = 0.0 if zero[k] else float(w[k])
-        dominant, rstd, text = _describe(v[:, k], names, lam)
-        if rstd > max_relative_std:
-            inseparable.append(
-                ParameterCombination(np.asarray(lam), np.asarray(rstd), v[:, k], dominant, text)
-            )
     return FisherInformation(
         names=names,
         units=units,
@@ -231,7 +251,7 @@ def fisher_from_jacobian(
         condition_number=np.asarray(unc.condition_number),
         uncertainty=unc,
         collinearity=collinearity_indices(rel_jac, names, max_subset_size),
-        inseparable=tuple(inseparable),
+        max_relative_std=np.asarray(float(max_relative_std)),
     )
 
 
