@@ -1,3 +1,4 @@
+# long: the timing harness (gradient_report) moves to benchmarks/ (issue 16, item 8).
 """Gradients of the least-squares objective by every method of paper sections 5.2-5.3.
 
 | method | how | AD mode |
@@ -143,6 +144,8 @@ def _vjp_theta(objective: Objective, theta, cotangent, alpha):
 
 
 _jacobian = eqx.filter_jit(residual_jacobian)  # the library's one residual Jacobian, compiled
+compiled_residuals = _residuals  # r(theta), compiled once per objective structure
+residuals_and_pullback = _vjp_theta  # (r, J^T (cotangent + alpha r)), compiled likewise
 
 
 @eqx.filter_jit

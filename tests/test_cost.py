@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bogie_jax.cost import make_objective, select_parameters
-from bogie_jax.gradients import _residuals, gradient
+from bogie_jax.gradients import compiled_residuals as _residuals, gradient
 from bogie_jax.measure import Measurement, MeasurementError
 
 

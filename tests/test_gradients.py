@@ -120,7 +120,7 @@ def test_residual_jacobian_forward_by_default_and_consistent(objective, theta0, 
 def test_reverse_jacobian_rows_equal_forward_rows(objective, theta0):
     # J^T e_i by the compiled reverse pass (cotangent e_i) against row i of the forward Jacobian.
     jac = np.asarray(residual_jacobian(objective, theta0, mode="fwd").jacobian)
-    from bogie_jax.gradients import _vjp_theta
+    from bogie_jax.gradients import residuals_and_pullback as _vjp_theta
 
     for i in (7, 101):
         e = jnp.zeros(objective.n_residuals).at[i].set(1.0)

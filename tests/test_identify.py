@@ -17,14 +17,18 @@ from bogie_jax.identify import (
     LeastSquaresMethod,
     LeastSquaresProblem,
     SimulatedAnnealing,
+    anneal_path,
+    anneal_start,
+    anneal_steps,
+    anneal_theta,
+    as_method,
     fit,
     fit_hybrid,
     fit_multistart,
     simulated_annealing,
+    supports_queue,
+    t_quantile,
 )
-from bogie_jax.identify._annealing import anneal_path, anneal_start, anneal_steps, anneal_theta
-from bogie_jax.identify._iteration import supports_queue
-from bogie_jax.identify._local import as_method, t_quantile
 
 
 # --- problems ----------------------------------------------------------------------------

@@ -24,10 +24,17 @@ import pytest
 
 import bogie_jax.cli.identify as identify_command
 from bogie_jax.cli import Parser, Progress, UsageError
-from bogie_jax.identify import as_problem, fit, fit_multistart, fit_multistart_chunked
-from bogie_jax.identify._batched import batched_fits, stack_objectives
-from bogie_jax.identify._local import statistics
-from bogie_jax.identify._scenarios import relative_errors, scenario_problem
+from bogie_jax.identify import (
+    as_problem,
+    batched_fits,
+    fit,
+    fit_multistart,
+    fit_multistart_chunked,
+    relative_errors,
+    scenario_problem,
+    stack_objectives,
+    statistics,
+)
 
 
 DURATION, RATE, MAX_STEPS, N_STARTS = 0.25, 100.0, 100, 4

@@ -2,7 +2,12 @@
 
 from ._annealing import (
     AnnealingResult as AnnealingResult,
+    AnnealingState as AnnealingState,
     SimulatedAnnealing as SimulatedAnnealing,
+    anneal_path as anneal_path,
+    anneal_start as anneal_start,
+    anneal_steps as anneal_steps,
+    anneal_theta as anneal_theta,
     fit_hybrid as fit_hybrid,
     simulated_annealing as simulated_annealing,
 )
@@ -10,12 +15,14 @@ from ._batched import (
     BatchedFits as BatchedFits,
     batched_fits as batched_fits,
     clear_runner_cache as clear_runner_cache,
+    stack_objectives as stack_objectives,
 )
 from ._chunked import (
     ChunkedMultistart as ChunkedMultistart,
     ChunkProgress as ChunkProgress,
     fit_multistart_chunked as fit_multistart_chunked,
 )
+from ._iteration import queue_lanes as queue_lanes, supports_queue as supports_queue
 from ._jacobian import JacobianResiduals as JacobianResiduals
 from ._local import (
     LOCAL_METHODS as LOCAL_METHODS,
@@ -24,8 +31,11 @@ from ._local import (
     LeastSquaresMethod as LeastSquaresMethod,
     MinimiserMethod as MinimiserMethod,
     PatternSearch as PatternSearch,
+    as_method as as_method,
     fit as fit,
     local_methods as local_methods,
+    statistics as statistics,
+    t_quantile as t_quantile,
 )
 from ._multistart import (
     DESIGNS as DESIGNS,
@@ -50,6 +60,7 @@ from ._scenarios import (
     SCENARIOS as SCENARIOS,
     Scenario as Scenario,
     SyntheticProblem as SyntheticProblem,
+    relative_errors as relative_errors,
     scenario_problem as scenario_problem,
     tolerance_bounds as tolerance_bounds,
 )

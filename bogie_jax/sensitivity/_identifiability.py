@@ -1,3 +1,4 @@
+# long: Fisher information and profile likelihood are one analysis (shared names, bounds, helpers).
 """Local and profile identifiability of a least-squares problem (paper section 4.2).
 
 With residuals weighted by 1/sigma (the default weights of `bogie_jax.cost`), J = 1/2 |r|^2 is the
