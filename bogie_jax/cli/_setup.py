@@ -10,6 +10,10 @@
 - A persistent compilation cache: `$BOGIE_JAX_CACHE_DIR`, else `$XDG_CACHE_HOME/bogie_jax/jax`,
   else `~/.cache/bogie_jax/jax`; `--no-cache` turns it off. Every compiled program is written
   (no minimum compile time or size). Left alone when the caller already set a cache directory.
+- `EQX_ON_ERROR=nan` (unless set): JAX never writes a program with host callbacks to the cache,
+  and equinox's runtime checks (`error_if`, diffrax's `throw`) are host callbacks in its default
+  `raise` mode; with `nan` a failed check gives NaN instead, which the commands report (failed
+  starts, an unsuccessful solve). Without it the solves, fits and statistics are never cached.
 
 The library itself changes no global configuration; only `bogie_jax.cli.main` calls this.
 """
@@ -69,6 +73,8 @@ def prepare(*, use_cache: bool) -> Setup:
     """Set `XLA_FLAGS` (before JAX is imported) and configure JAX: float64 and the cache."""
     if "matplotlib" not in sys.modules:
         os.environ.setdefault("MPLBACKEND", "Agg")  # figures go to files
+    if "equinox" not in sys.modules:
+        os.environ.setdefault("EQX_ON_ERROR", "nan")  # read by equinox at import
     devices = None
     if "jax" not in sys.modules and "XLA_FLAGS" not in os.environ and not accelerator_hinted():
         devices = cpu_cores()

@@ -1,5 +1,7 @@
 """`bogie-jax simulate`: one run of a named bogie over a track, saved as .npz or .csv."""
 
+import sys
+
 from ..io import save_trajectory
 from ..params import PARAMETER_SETS
 from ..plot import plot_simulation
@@ -48,10 +50,22 @@ def run(args, progress) -> int:
     progress.compiling(f"the {args.duration:g} s simulation")
     try:
         trajectory = simulate(
-            params, track, speed=args.speed, duration=args.duration, sample_rate=args.sample_rate
+            params,
+            track,
+            speed=args.speed,
+            duration=args.duration,
+            sample_rate=args.sample_rate,
+            throw=False,  # a failed solve is reported below, in one line
         )
     except ValueError as e:
         raise UsageError(str(e)) from None
+    if not bool(trajectory.successful):
+        print(
+            f"bogie-jax simulate: error: the solve failed ({trajectory.result}); "
+            "try a shorter `--duration` or a lower `--speed`",
+            file=sys.stderr,
+        )
+        return 1
     path = save_trajectory(args.out, trajectory)
     progress.say(
         f"simulated {args.duration:g} s at {args.speed:g} m/s on {reference.describe()}: "
