@@ -2,6 +2,7 @@
 
 import json
 import platform
+import re
 import subprocess
 import time
 from pathlib import Path
@@ -47,3 +48,79 @@ def write_outputs(name: str, records, markdown: str, extra: dict | None = None) 
     (RESULTS / f"{name}.json").write_text(json.dumps(payload, indent=2))
     (RESULTS / f"{name}.md").write_text(markdown)
     print(markdown)
+
+
+# --- compiled programs: size and where it comes from (used by compile.py) ---
+
+_HLO_INSTRUCTION = re.compile(r"^\s+(?:ROOT\s+)?%[\w.\-]+ = ")
+_MLIR_OP = re.compile(r"^\s*(?:%[^=\"]+=\s*)?\"?(?:[a-z_]+\.[a-z_.]+|call|return)\b")
+_HLO_SECTIONS = ("FileNames", "FunctionNames", "FileLocations", "StackFrames")
+
+
+def hlo_instruction_lines(hlo_text: str) -> list[str]:
+    """The instruction lines of an HLO module's text (`compiled.as_text()`), fusion bodies and
+    loop bodies included: one line per HLO instruction."""
+    return [line for line in hlo_text.splitlines() if _HLO_INSTRUCTION.match(line)]
+
+
+def mlir_op_count(mlir_text: str) -> int:
+    """Operations in an MLIR module's text (`lowered.as_text()`: StableHLO, func, sdy ops),
+    counted as lines that hold an operation; function headers are not counted."""
+    return sum(
+        1
+        for line in mlir_text.splitlines()
+        if _MLIR_OP.match(line) and not line.lstrip().startswith("func.func")
+    )
+
+
+def hlo_stack_frames(hlo_text: str) -> dict[int, list[tuple[str, str, int]]]:
+    """`{stack_frame_id: [(file, function, line), ...]}`, innermost frame first, from the
+    stack-frame index that XLA prints in the module's header (`FileNames`, `FunctionNames`,
+    `FileLocations`, `StackFrames`; instructions name their frame by `stack_frame_id=`).
+    A printed `parent_frame_id` is the parent's id plus one (0: no parent)."""
+    sections: dict[str, dict[int, str]] = {}
+    current = None
+    for line in hlo_text.splitlines():
+        if line in _HLO_SECTIONS:
+            current = sections.setdefault(line, {})
+        elif current is not None and not line.strip():
+            current = None
+        elif current is not None:
+            key, rest = line.split(" ", 1)
+            current[int(key)] = rest
+    if "StackFrames" not in sections:
+        return {}
+    fields = lambda text: {k: int(v) for k, v in re.findall(r"(\w+)=(\d+)", text)}
+    files = {k: v.strip('"') for k, v in sections.get("FileNames", {}).items()}
+    names = {k: v.strip('"') for k, v in sections.get("FunctionNames", {}).items()}
+    locations = {}
+    for key, text in sections.get("FileLocations", {}).items():
+        f = fields(text)
+        locations[key] = (files[f["file_name_id"]], names[f["function_name_id"]], f["line"])
+    parents = {k: fields(v) for k, v in sections["StackFrames"].items()}
+
+    def chain(frame):
+        out, seen = [], set()
+        while frame in parents and frame not in seen:
+            seen.add(frame)
+            out.append(locations[parents[frame]["file_location_id"]])
+            frame = parents[frame]["parent_frame_id"] - 1
+        return out
+
+    return {frame: chain(frame) for frame in parents}
+
+
+def hlo_attribution(hlo_text: str, label) -> dict[str, int]:
+    """HLO instructions counted by where they come from, most first.
+
+    Each instruction is charged to the innermost frame of its call stack for which
+    `label(file, function)` returns a string (`None` skips a frame, e.g. a wrapper of JAX or
+    equinox); instructions without a stack count as `"(no stack)"`."""
+    stacks = hlo_stack_frames(hlo_text)
+    counts: dict[str, int] = {}
+    for line in hlo_instruction_lines(hlo_text):
+        found = re.search(r"stack_frame_id=(\d+)", line)
+        frames = stacks.get(int(found.group(1)), []) if found else []
+        name = next((n for n in (label(f, fn) for f, fn, _ in frames) if n), "(no stack)")
+        counts[name] = counts.get(name, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: -kv[1]))
