@@ -43,13 +43,11 @@ jax.config.update("jax_enable_x64", True)
 
 from bogie_jax import manchester_benchmark  # noqa: E402
 from bogie_jax.cost import make_objective  # noqa: E402
+from bogie_jax.gradcheck import gradient_report, median_time, report_table  # noqa: E402
 from bogie_jax.gradients import (  # noqa: E402
     METHODS,
-    _median_time,
-    _residuals,
-    gradient_report,
+    compiled_residuals,
     reference_gradient,
-    report_table,
     residual_jacobian,
 )
 from bogie_jax.measure import Measurement, synthetic_measurement  # noqa: E402
@@ -131,7 +129,7 @@ def _jacobian_problem(names, at, track, data, controller, n):
 def _jacobian_records(objective, theta, repeats):
     out = []
     for mode in ("fwd", "rev"):
-        first, t = _median_time(
+        first, t = median_time(
             lambda: residual_jacobian(objective, theta, mode=mode).jacobian, repeats
         )
         out.append(
@@ -213,7 +211,7 @@ def main(argv=None) -> int:
         _release_compiled()
         if n == args.jacobian_n:
             small = _jacobian_problem(names, at, track, data, controller, n)
-            _, solve = _median_time(lambda: _residuals(small, jnp.zeros(n)), args.repeats)
+            _, solve = median_time(lambda: compiled_residuals(small, jnp.zeros(n)), args.repeats)
             jac = _jacobian_records(small, jnp.zeros(n), max(1, min(args.repeats, 3)))
             for r in jac:
                 r["time_ratio"] = r["time_s"] / solve

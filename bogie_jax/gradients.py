@@ -1,4 +1,3 @@
-# long: the timing harness (gradient_report) moves to benchmarks/ (issue 16, item 8).
 """Gradients of the least-squares objective by every method of paper sections 5.2-5.3.
 
 | method | how | AD mode |
@@ -21,8 +20,6 @@ of J: by default the larger of machine epsilon and the `rtol` of the solve's ste
 coordinate). Each h_i is then rounded so that theta_i + h_i - theta_i == h_i exactly.
 """
 
-import statistics
-import time
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -146,6 +143,7 @@ def _vjp_theta(objective: Objective, theta, cotangent, alpha):
 _jacobian = eqx.filter_jit(residual_jacobian)  # the library's one residual Jacobian, compiled
 compiled_residuals = _residuals  # r(theta), compiled once per objective structure
 residuals_and_pullback = _vjp_theta  # (r, J^T (cotangent + alpha r)), compiled likewise
+compiled_jacobian = _jacobian  # (r, dr/dtheta) in forward mode, compiled likewise
 
 
 @eqx.filter_jit
@@ -305,44 +303,6 @@ def scalar_product_test(
     return ScalarProductTest(lhs, rhs, jnp.max(jnp.abs(lhs - rhs)) / scale)
 
 
-# ------------------------------------------------------------------------------------ harness
-def _timed(fn) -> float:
-    t = time.perf_counter()
-    jax.block_until_ready(fn())
-    return time.perf_counter() - t
-
-
-def _median_time(fn, repeats: int) -> tuple[float, float]:
-    """(time of the first call, median of `repeats` further calls) [s]."""
-    first = _timed(fn)
-    return first, statistics.median(_timed(fn) for _ in range(repeats))
-
-
-def _paired_times(fn, solve, repeats: int) -> tuple[float, float, float]:
-    """(first call, median time, median of time / adjacent forward-solve time): each timed call
-    is paired with a solve timed right before it, so load drift on a shared machine cancels."""
-    first = _timed(fn)
-    pairs = [(_timed(solve), _timed(fn)) for _ in range(repeats)]
-    return first, statistics.median(g for _, g in pairs), statistics.median(g / s for s, g in pairs)
-
-
-def _peak_bytes(jitted, *args) -> int:
-    """XLA's compiled memory analysis of `jitted(*args)`: arguments + outputs + temporaries."""
-    stats = jitted.lower(*args).compile().compiled.memory_analysis()
-    peak = getattr(stats, "peak_memory_in_bytes", 0)
-    total = stats.argument_size_in_bytes + stats.output_size_in_bytes + stats.temp_size_in_bytes
-    return int(max(peak, total - stats.alias_size_in_bytes))
-
-
-def _core_memory(objective, theta, adjoint, mode) -> int:
-    if mode == "fd":
-        return _peak_bytes(_residuals, objective, theta)
-    objective = objective.with_adjoint(adjoint)
-    if mode == "fwd":
-        return _peak_bytes(_jacobian, objective, theta)
-    return _peak_bytes(_vjp_theta, objective, theta, jnp.zeros(objective.n_residuals), 1.0)
-
-
 def reference_gradient(
     objective: Objective, theta, *, rtol: float = 1e-12, atol: float = 1e-14, max_steps=None
 ):
@@ -355,70 +315,3 @@ def reference_gradient(
     settings = {} if max_steps is None else {"max_steps": max_steps}
     tight = objective.replace(stepsize_controller=controller, **settings)
     return gradient(tight, theta, method="forward").grad
-
-
-def gradient_report(
-    objective: Objective, theta, *, methods=METHODS, repeats: int = 5, reference=None
-) -> list[dict]:
-    """Time, accuracy and memory of each gradient method on `objective` at `theta`.
-
-    One record per method: `method`, `mode`, `n_params`, `time_s` (median of `repeats` calls
-    after a first, compiling call), `time_ratio` (median over the calls of the time over that of
-    one forward solve, the compiled residuals, timed right before each call), `compile_s` (first
-    call minus median), `rel_error`
-    (|g - g_ref| / |g_ref|, 2-norms, against `reference` or `reference_gradient`),
-    `peak_memory_mb` (XLA's compiled memory analysis of the method's main compiled function:
-    arguments + outputs + temporaries; finite differences: that of the residuals), `grad`.
-    """
-    theta = jnp.asarray(theta, dtype=float)
-    g_ref = np.asarray(reference_gradient(objective, theta) if reference is None else reference)
-    solve = lambda: _residuals(objective, theta)
-    solve_first, solve_time = _median_time(solve, repeats)
-    records = [
-        dict(
-            method="forward-solve",
-            mode="-",
-            n_params=int(theta.size),
-            time_s=solve_time,
-            time_ratio=1.0,
-            compile_s=solve_first - solve_time,
-            rel_error=0.0,
-            peak_memory_mb=_core_memory(objective, theta, None, "fd") / 2**20,
-            grad=None,
-        )
-    ]
-    for method in methods:
-        name, adjoint, mode = _resolve_for(objective, method, None)
-        call = lambda: gradient(objective, theta, method=method).grad
-        first, t, ratio = _paired_times(call, solve, repeats)
-        g = np.asarray(call())
-        records.append(
-            dict(
-                method=name,
-                mode=mode,
-                n_params=int(theta.size),
-                time_s=t,
-                time_ratio=ratio,
-                compile_s=max(first - t, 0.0),
-                rel_error=float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref)),
-                peak_memory_mb=_core_memory(objective, theta, adjoint, mode) / 2**20,
-                grad=[float(x) for x in g],
-            )
-        )
-    return records
-
-
-def report_table(records) -> str:
-    """A markdown table of `gradient_report` records."""
-    lines = [
-        "| method | mode | n | time / forward solve | time [ms] | compile [s] | rel. error "
-        "| peak memory [MB] |",
-        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
-    ]
-    for r in records:
-        lines.append(
-            f"| {r['method']} | {r['mode']} | {r['n_params']} | {r['time_ratio']:.2f} | "
-            f"{1e3 * r['time_s']:.1f} | {r['compile_s']:.1f} | {r['rel_error']:.1e} | "
-            f"{r['peak_memory_mb']:.1f} |"
-        )
-    return "\n".join(lines)
