@@ -50,13 +50,14 @@ from _common import write_outputs  # noqa: E402
 import bogie_jax as bj  # noqa: E402
 from bogie_jax.batch import batch_runner  # noqa: E402
 from bogie_jax.cost import synthetic_objective  # noqa: E402
+from bogie_jax.identify import as_problem  # noqa: E402
 from bogie_jax.sensitivity import (  # noqa: E402
     fisher_from_jacobian,
+    physical_jacobian,  # noqa: E402
     saltelli_sample,
     sensor_layouts,
     sobol_indices,
 )
-from bogie_jax.sensitivity._identifiability import _jacobians, plain_problem  # noqa: E402
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track  # noqa: E402
 
 
@@ -116,7 +117,7 @@ def study_speed(speed, args, params, sensors, layouts, key):
 
     # --- FIM at the nominal parameters: one forward-mode Jacobian, rows split per layout
     t0 = time.perf_counter()
-    jac, values = _jacobians(plain_problem(objective), jnp.zeros(len(PARAMS)))
+    jac, values = physical_jacobian(as_problem(objective), jnp.zeros(len(PARAMS)))
     jac = np.asarray(jac).reshape(-1, n_ch, len(PARAMS))
     fims = {
         k: fisher_from_jacobian(

@@ -1,3 +1,4 @@
+# long: one driver for every method, scenario and table of the identification study; its parts share the run records.
 """Identification benchmark (issue 4, item 7).
 
 Scenarios with 3, 6 and 10 selected parameters (`primary3`, `primary6`, `all10` of
@@ -57,13 +58,20 @@ import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
-from bogie_jax.identify import SimulatedAnnealing
-from bogie_jax.identify._annealing import anneal_start, anneal_steps
-from bogie_jax.identify._batched import BatchedFits, stack_objectives
-from bogie_jax.identify._local import LOCAL_METHODS, statistics
-from bogie_jax.identify._multistart import design_starts
-from bogie_jax.identify._problem import as_problem, start_theta
-from bogie_jax.identify._scenarios import relative_errors, scenario_problem
+from bogie_jax.identify import (
+    LOCAL_METHODS,
+    BatchedFits,
+    SimulatedAnnealing,
+    anneal_start,
+    anneal_steps,
+    as_problem,
+    design_starts,
+    relative_errors,
+    scenario_problem,
+    stack_objectives,
+    start_theta,
+    statistics,
+)
 
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -685,7 +693,7 @@ def _lanes(args):
 
 
 def _n_params(sc):
-    from bogie_jax.identify._scenarios import SCENARIOS
+    from bogie_jax.identify import SCENARIOS
 
     return len(SCENARIOS[sc].offsets)
 

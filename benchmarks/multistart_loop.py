@@ -21,10 +21,10 @@ import jax  # noqa: E402
 import jax.random as jr  # noqa: E402
 import numpy as np  # noqa: E402
 
-from bogie_jax.identify._local import LOCAL_METHODS  # noqa: E402
-from bogie_jax.identify._multistart import design_starts  # noqa: E402
-from bogie_jax.identify._problem import as_problem  # noqa: E402
-from bogie_jax.identify._scenarios import relative_errors, scenario_problem  # noqa: E402
+from bogie_jax.identify import LOCAL_METHODS  # noqa: E402
+from bogie_jax.identify import design_starts  # noqa: E402
+from bogie_jax.identify import as_problem  # noqa: E402
+from bogie_jax.identify import relative_errors, scenario_problem  # noqa: E402
 
 
 def main(scenario="primary6", starts=32, max_steps=100, duration=0.5, rtol=1e-8):

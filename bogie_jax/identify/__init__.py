@@ -44,6 +44,7 @@ from ._multistart import (
     LatinHypercube as LatinHypercube,
     MultistartResult as MultistartResult,
     Sobol as Sobol,
+    design_starts as design_starts,
     fit_multistart as fit_multistart,
 )
 from ._problem import (
@@ -53,6 +54,7 @@ from ._problem import (
     as_problem as as_problem,
     is_successful as is_successful,
     results_from_names as results_from_names,
+    start_theta as start_theta,
     status_name as status_name,
     status_names as status_names,
 )

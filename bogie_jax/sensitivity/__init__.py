@@ -17,6 +17,7 @@ from ._identifiability import (
     collinearity_indices as collinearity_indices,
     fisher_from_jacobian as fisher_from_jacobian,
     fisher_information as fisher_information,
+    physical_jacobian as physical_jacobian,
     profile_interval as profile_interval,
     profile_likelihood as profile_likelihood,
 )

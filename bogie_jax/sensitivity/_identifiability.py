@@ -257,7 +257,9 @@ def fisher_from_jacobian(
 
 
 @eqx.filter_jit
-def _jacobians(problem, theta):
+def physical_jacobian(problem, theta):
+    """`(J, p)`: the residual Jacobian with respect to the physical parameters (m, n) and their
+    values p (n,) at `theta`, for a `LeastSquaresProblem` (`bogie_jax.identify.as_problem`)."""
     _, jac_theta = residual_jacobian(problem, theta, problem.args)
     # The transforms are element-wise: dp/dtheta is diagonal.
     values, d = jax.jvp(problem.transform.to_physical, (theta,), (jnp.ones_like(theta),))
@@ -290,7 +292,7 @@ def fisher_information(
             physical = getattr(transform, "nominal")
         theta = transform.to_theta(jnp.asarray(physical, dtype=float))
     theta = jnp.atleast_1d(jnp.asarray(theta, dtype=float))
-    jac, values = _jacobians(lsq, theta)
+    jac, values = physical_jacobian(lsq, theta)
     return fisher_from_jacobian(
         jac,
         values,
