@@ -35,6 +35,7 @@ from scipy.integrate import solve_ivp
 
 import bogie_jax as bj
 from bogie_jax.batch import batch_runner
+from bogie_jax.params import get_parameter
 from bogie_jax.simulate import simulate
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 
@@ -103,8 +104,8 @@ def rel_error(q, q_ref):
 
 def batch_members(params, key):
     scales = jr.uniform(key, (BATCH, 2), minval=0.8, maxval=1.2)
-    ky = params.primary.ky * scales[:, 0]
-    c = params.yaw_dampers.c * scales[:, 1]
+    ky = get_parameter(params, "primary.ky") * scales[:, 0]
+    c = get_parameter(params, "yaw_dampers.c") * scales[:, 1]
     return ky, c
 
 
