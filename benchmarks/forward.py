@@ -28,7 +28,6 @@ jax.config.update("jax_enable_x64", True)
 
 import diffrax as dfx
 import equinox as eqx
-import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 from scipy.integrate import solve_ivp

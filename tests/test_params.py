@@ -8,14 +8,14 @@ import pytest
 
 import bogie_jax as bj
 from bogie_jax.params import (
-    BodyInertia,
-    element_names,
-    get_parameter,
     PARAMETER_SETS,
-    parameter_names,
-    parameter_specs,
+    BodyInertia,
     ParameterError,
     PrimarySuspension,
+    element_names,
+    get_parameter,
+    parameter_names,
+    parameter_specs,
     set_parameters,
 )
 
@@ -29,7 +29,8 @@ def test_named_sets_are_valid_and_inside_their_valid_ranges(name):
     for (path, spec), value in zip(specs.items(), leaves):
         assert spec.unit, path
         assert np.shape(value) == spec.shape, path  # () or one value per element
-        assert np.all((spec.valid[0] <= np.asarray(value)) & (np.asarray(value) <= spec.valid[1])), path
+        lo, hi = spec.valid
+        assert np.all((lo <= np.asarray(value)) & (np.asarray(value) <= hi)), path
         assert spec.valid[0] <= spec.bounds[0] < spec.bounds[1] <= spec.valid[1], path
         # the named sets are symmetric: every element of a per-element field has one value
         assert np.all(np.asarray(value) == np.ravel(value)[0]), path
@@ -90,8 +91,10 @@ def test_per_element_fields_broadcast_scalars_and_keep_arrays():
 @pytest.mark.parametrize(
     "override, pattern",
     [
-        ({"kz": [1e6, 1e6, -1.0, 1e6]}, r"`PrimarySuspension.kz` = -1.0 N/m at element 2L is outside its valid range"),
-        ({"kx": np.ones(3)}, r"must be a scalar \[N/m\], got an array of shape \(3,\) \(or one value per element 1L, 1R, 2L, 2R: shape \(4,\)\)"),
+        ({"kz": [1e6, 1e6, -1.0, 1e6]},
+         r"`PrimarySuspension.kz` = -1.0 N/m at element 2L is outside its valid range"),
+        ({"kx": np.ones(3)}, r"must be a scalar \[N/m\], got an array of shape \(3,\) "
+         r"\(or one value per element 1L, 1R, 2L, 2R: shape \(4,\)\)"),
     ],
 )
 def test_invalid_element_values_name_the_element(override, pattern):

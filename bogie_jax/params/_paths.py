@@ -105,7 +105,8 @@ def resolve_parameter(params: eqx.Module, name: str, context: str = "") -> Param
                 return ParameterPath(name, tuple(field.split(".")), index, spec)
             group = ".".join(parts[:-2])
             raise ValueError(
-                f"unknown element {label!r} in parameter {name!r}{context}: the elements of `{group}` are "
+                f"unknown element {label!r} in parameter {name!r}{context}: the elements of "
+                f"`{group}` are "
                 f"{', '.join(spec.elements)} (e.g. `{group}.{spec.elements[0]}.{parts[-1]}`), or "
                 f"`{field}` for all of them"
             )
