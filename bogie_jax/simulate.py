@@ -6,10 +6,11 @@ import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import optimistix as optx
 
 from ._precision import warn_if_float32
 from ._validation import check_positive_int, check_range
-from .model import accelerations, build_model, N_DOF, vector_field
+from .model import accelerations, build_model, N_DOF, static_equilibrium_solve, vector_field
 from .params import BogieParams, ModelOptions
 from .track import TrackIrregularity
 
@@ -86,7 +87,11 @@ def simulate(
     - `track`: `TrackIrregularity` (e.g. `synthesise_track(...)` or `perfect_track()`).
     - `speed`: forward speed [m/s], in (0, 150]; may be traced (vmap over speeds).
     - `duration`: simulated time [s] (static), `sample_rate`: output rate [Hz] (static).
-    - `y0`: initial state (q, q_dot) (20,), default static equilibrium (zeros).
+    - `y0`: initial state (q, q_dot) (20,); default `None`: at rest in the static equilibrium
+      of `params`, (q0, 0) with q0 = `bogie_jax.model.static_equilibrium(params)` (zeros for a
+      symmetric bogie), computed inside this function so that it follows traced parameters
+      (differentiably). If its Newton solve fails, `Trajectory.result` says so (with
+      `throw=False`; with `throw=True` it raises).
     - `options`: `ModelOptions` (nonlinear model options).
     - `solver`, `stepsize_controller`, `adjoint`, `max_steps`, `dt0`, `throw`: passed to
       `diffrax.diffeqsolve`. Use `adjoint=diffrax.ForwardMode()` for `jax.jacfwd`,
@@ -100,8 +105,10 @@ def simulate(
         stepsize_controller = default_controller()
     ts = sample_times(duration, sample_rate)
     model = build_model(params, speed=speed, track=track, options=options)
+    rest = None
     if y0 is None:
-        y0 = jnp.zeros(2 * N_DOF)
+        rest = static_equilibrium_solve(params, options=options, throw=throw)
+        y0 = jnp.concatenate([rest.value, jnp.zeros(N_DOF, dtype=rest.value.dtype)])
     solution = dfx.diffeqsolve(
         dfx.ODETerm(vector_field),
         solver,
@@ -118,13 +125,17 @@ def simulate(
     )
     q, qd = solution.ys[:, :N_DOF], solution.ys[:, N_DOF:]
     qdd = jax.vmap(lambda t, a, b: accelerations(model, t, a, b))(ts, q, qd)
+    result = solution.result
+    if rest is not None:
+        at_rest = rest.result == optx.RESULTS.successful
+        result = dfx.RESULTS.where(at_rest, result, dfx.RESULTS.promote(rest.result))
     return Trajectory(
         ts=ts,
         q=q,
         qd=qd,
         qdd=qdd,
         speed=model.speed,
-        result=solution.result,
+        result=result,
         num_steps=solution.stats["num_steps"],
         num_accepted_steps=solution.stats["num_accepted_steps"],
         num_rejected_steps=solution.stats["num_rejected_steps"],

@@ -38,6 +38,10 @@ def make_objective(
     **Arguments:**
     - `measurement`: a `Measurement` sampled at t = 0, 1/f_s, ... (the run starts at rest at
       t = 0 unless `y0` is given); its `speed` is the run's speed.
+    - `y0`: the initial state (20,); default `None`: at rest in the static equilibrium of the
+      parameters being evaluated, (q0(p(theta)), 0), computed inside the objective so that it
+      follows theta (differentiably, `bogie_jax.model.static_equilibrium`); zeros for a
+      symmetric bogie.
     - `params`: base parameters: nominal values of the selected parameters (theta = 0) and
       fixed values of the others. `track`: the track of the run.
     - `names`, `bounds`: the selection (see `select_parameters`).
@@ -47,7 +51,7 @@ def make_objective(
       (n_channels,), or `{channel: weight}` (others keep the default). Must be finite, > 0.
     - `options`, `solver`, `stepsize_controller` (default PID rtol 1e-6, atol 1e-9), `adjoint`
       (default `RecursiveCheckpointAdjoint(checkpoints=max_steps)`, see
-      `bogie_jax.gradients.full_checkpoints`), `max_steps`, `dt0`, `throw`, `y0`: the solve (see
+      `bogie_jax.gradients.full_checkpoints`), `max_steps`, `dt0`, `throw`: the solve (see
       `simulate`). With `throw=False` a failed solve gives infinite residuals instead of an error.
 
     **Raises:** `ValueError` (`MeasurementError` for the data) naming the problem.
