@@ -244,7 +244,9 @@ def test_rhs_matches_twin_asymmetric(asymmetric_params, erri_track, name):
     asymmetry matters: the symmetric twin differs by more than 1e-3 relative."""
     options = OPTION_SETS[name]
     model, twin = _pair(asymmetric_params, erri_track, options)
-    symmetric = BogieTwin(bogie_jax.manchester_benchmark(), SPEED, twin.track_inputs, options=options)
+    symmetric = BogieTwin(
+        bogie_jax.manchester_benchmark(), SPEED, twin.track_inputs, options=options
+    )
     rng = np.random.default_rng(11)
     states = _option_states(rng)
     worst, effect = 0.0, 0.0
@@ -369,7 +371,8 @@ def test_trajectory_asymmetric(asymmetric_params, zero_track):
     """Per-element parameters in motion: the asymmetric bogie (left anti-yaw damper at 0,
     primary 1L vertical spring +30 %, secondary left lateral damper at 50 %) released at q = 0
     (not its rest state: it settles, with heave, roll and pitch) with both wheelsets 2 mm
-    aside, 0.5 s at 50 m/s on a perfect track (1 s takes ~70 s of CPU): scipy Radau (rtol 1e-10, atol 1e-12) on the twin
+    aside, 0.5 s at 50 m/s on a perfect track (1 s takes ~70 s of CPU): scipy Radau
+    (rtol 1e-10, atol 1e-12) on the twin
     vs diffrax Dopri8 (rtol 1e-11, atol 1e-13) on the JAX model; per coordinate group
     (positions and rates separately) max abs difference / max abs value of the twin's <= 1e-6."""
     model = build_model(asymmetric_params, speed=SPEED, track=zero_track)

@@ -26,7 +26,8 @@ from ._dynamics import accelerations, build_model
 from ._layout import N_DOF
 
 
-EQUILIBRIUM_SPEED = 1.0  # [m/s] speed of the rolling wheelsets in the solve (q0 does not depend on it)
+# [m/s] speed of the rolling wheelsets in the solve (q0 does not depend on it, see above)
+EQUILIBRIUM_SPEED = 1.0
 
 
 def _residual(q, model):
