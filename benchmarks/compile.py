@@ -574,14 +574,15 @@ def compare(labels: str) -> None:
     value = lambda r, k: r[k] if r is not None and r.get("ok") else None
     ratio = lambda x, y: "-" if not x or y is None else f"{y / x:.2f}"
     rows = [
-        f"| program | compile s {a} | {b} | ratio | HLO {a} | {b} | ratio | run ms {a} | {b} "
-        "| ratio |",
-        "| --- |" + " ---: |" * 9,
+        f"| program | compile s {a} | {b} | ratio | compile cpu s {a} | {b} | ratio "
+        f"| HLO {a} | {b} | ratio | run ms {a} | {b} | ratio |",
+        "| --- |" + " ---: |" * 12,
     ]
     for name in [*ra, *(n for n in rb if n not in ra)]:
         x, y = ra.get(name), rb.get(name)
         cells = []
-        for key, scale in (("compile_s", 1.0), ("hlo_instructions", 1.0), ("run_s", 1e3)):
+        keys = ("compile_s", "compile_cpu_s", "hlo_instructions", "run_s")
+        for key, scale in zip(keys, (1.0, 1.0, 1.0, 1e3)):
             u, v = value(x, key), value(y, key)
             digits = 0 if key == "hlo_instructions" else 1
             cells += [fmt(u, scale, digits), fmt(v, scale, digits), ratio(u, v)]

@@ -28,13 +28,13 @@ jax.config.update("jax_enable_x64", True)
 
 import diffrax as dfx
 import equinox as eqx
-import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 from scipy.integrate import solve_ivp
 
 import bogie_jax as bj
 from bogie_jax.batch import batch_runner
+from bogie_jax.params import get_parameter
 from bogie_jax.simulate import simulate
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 
@@ -103,8 +103,8 @@ def rel_error(q, q_ref):
 
 def batch_members(params, key):
     scales = jr.uniform(key, (BATCH, 2), minval=0.8, maxval=1.2)
-    ky = params.primary.ky * scales[:, 0]
-    c = params.yaw_dampers.c * scales[:, 1]
+    ky = get_parameter(params, "primary.ky") * scales[:, 0]
+    c = get_parameter(params, "yaw_dampers.c") * scales[:, 1]
     return ky, c
 
 

@@ -6,6 +6,7 @@ import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import optimistix as optx
 
 from ._precision import warn_if_float32
 from ._solve_settings import (
@@ -14,7 +15,7 @@ from ._solve_settings import (
     resolve_settings,
 )
 from ._validation import check_positive_int, check_range
-from .model import N_DOF, accelerations, build_model, vector_field
+from .model import N_DOF, accelerations, build_model, static_equilibrium_solve, vector_field
 from .params import BogieParams, ModelOptions
 from .track import TrackIrregularity
 
@@ -83,7 +84,11 @@ def simulate(
     - `track`: `TrackIrregularity` (e.g. `synthesise_track(...)` or `perfect_track()`).
     - `speed`: forward speed [m/s], in (0, 150]; may be traced (vmap over speeds).
     - `duration`: simulated time [s] (static), `sample_rate`: output rate [Hz] (static).
-    - `y0`: initial state (q, q_dot) (20,), default static equilibrium (zeros).
+    - `y0`: initial state (q, q_dot) (20,); default `None`: at rest in the static equilibrium
+      of `params`, (q0, 0) with q0 = `bogie_jax.model.static_equilibrium(params)` (zeros for a
+      symmetric bogie), computed inside this function so that it follows traced parameters
+      (differentiably). If its Newton solve fails, `Trajectory.result` says so (with
+      `throw=False`; with `throw=True` it raises).
     - `options`: `ModelOptions` (nonlinear model options).
     - `settings`: `SolveSettings` (solver, step-size controller, adjoint, `max_steps`, `dt0`,
       `throw`; default `SolveSettings()`). Use `settings.forward_mode()` for `jax.jacfwd`,
@@ -97,8 +102,10 @@ def simulate(
     warn_if_float32()
     ts = sample_times(duration, sample_rate)
     model = build_model(params, speed=speed, track=track, options=options)
+    rest = None
     if y0 is None:
-        y0 = jnp.zeros(2 * N_DOF)
+        rest = static_equilibrium_solve(params, options=options, throw=settings.throw)
+        y0 = jnp.concatenate([rest.value, jnp.zeros(N_DOF, dtype=rest.value.dtype)])
     solution = dfx.diffeqsolve(
         dfx.ODETerm(vector_field),
         settings.solver,
@@ -115,13 +122,17 @@ def simulate(
     )
     q, qd = solution.ys[:, :N_DOF], solution.ys[:, N_DOF:]
     qdd = jax.vmap(lambda t, a, b: accelerations(model, t, a, b))(ts, q, qd)
+    result = solution.result
+    if rest is not None:
+        at_rest = rest.result == optx.RESULTS.successful
+        result = dfx.RESULTS.where(at_rest, result, dfx.RESULTS.promote(rest.result))
     return Trajectory(
         ts=ts,
         q=q,
         qd=qd,
         qdd=qdd,
         speed=model.speed,
-        result=solution.result,
+        result=result,
         num_steps=solution.stats["num_steps"],
         num_accepted_steps=solution.stats["num_accepted_steps"],
         num_rejected_steps=solution.stats["num_rejected_steps"],

@@ -40,12 +40,14 @@ def test_selection_round_trip_bounds_and_apply(nominal):
     grads = jax.jacfwd(sel.to_physical)(jnp.array([0.0, 40.0, -40.0]))
     assert np.all(np.isfinite(grads))
     p = sel.apply(nominal, theta)
+    # a tied name sets every element (four axleboxes, two sides) to its one value
     np.testing.assert_allclose(
-        [p.primary.kz, p.primary.ky, p.yaw_dampers.c], sel.to_physical(theta), rtol=1e-15
+        [p.primary.kz, p.primary.ky], np.repeat(sel.to_physical(theta)[:2, None], 4, 1), rtol=1e-15
     )
-    assert float(p.primary.kx) == float(nominal.primary.kx)  # unselected unchanged
+    np.testing.assert_allclose(p.yaw_dampers.c, np.repeat(sel.to_physical(theta)[2], 2), rtol=1e-15)
+    np.testing.assert_array_equal(p.primary.kx, nominal.primary.kx)  # unselected unchanged
     batch = jax.vmap(lambda th: sel.apply(nominal, th).primary.kz)(jnp.stack([theta, -theta]))
-    np.testing.assert_allclose(batch, 1.22e6 * np.exp([0.3, -0.3]), rtol=1e-14)
+    np.testing.assert_allclose(batch, 1.22e6 * np.exp([[0.3] * 4, [-0.3] * 4]), rtol=1e-14)
     assert sel.describe(jnp.zeros(3))["primary.kz"] == (1.22e6, "N/m")
 
 
@@ -79,6 +81,54 @@ def test_selection_round_trip_bounds_and_apply(nominal):
 def test_bad_selections_are_rejected(nominal, names, bounds, match):
     with pytest.raises(ValueError, match=match):
         select_parameters(nominal, names, bounds=bounds)
+
+
+def test_element_selection_reads_and_sets_one_element(nominal):
+    """An element name (`primary.1L.kz`) has its own theta; tied names still set all elements;
+    `values` reads back what `apply` wrote; works under vmap."""
+    names = ["primary.1L.kz", "yaw_dampers.right.c", "secondary.cy"]
+    sel = select_parameters(nominal, names, bounds={"yaw_dampers.right.c": "spec"})
+    assert sel.units == ("N/m", "N s/m", "N s/m") and sel.log_scale == (True, False, True)
+    np.testing.assert_allclose(sel.nominal, [1.22e6, 400e3, 32e3], rtol=1e-15)
+    theta = jnp.array([0.2, -0.5, 0.1])
+    p = sel.apply(nominal, theta)
+    v = np.asarray(sel.to_physical(theta))
+    np.testing.assert_allclose(p.primary.kz, [v[0], 1.22e6, 1.22e6, 1.22e6], rtol=1e-15)
+    np.testing.assert_allclose(p.yaw_dampers.c, [400e3, v[1]], rtol=1e-15)
+    np.testing.assert_allclose(p.secondary.cy, [v[2], v[2]], rtol=1e-15)
+    np.testing.assert_allclose(sel.values(p), v, rtol=1e-15)
+    batch = jax.vmap(lambda th: sel.apply(nominal, th).yaw_dampers.c)(jnp.stack([theta, 0 * theta]))
+    np.testing.assert_allclose(batch, [[400e3, v[1]], [400e3, 400e3]], rtol=1e-14)
+    # two elements of one field: each its own theta
+    sel2 = select_parameters(nominal, ["yaw_dampers.left.c", "yaw_dampers.right.c"])
+    p2 = sel2.apply(nominal, jnp.array([np.log(0.5), 0.0]))
+    np.testing.assert_allclose(p2.yaw_dampers.c, [200e3, 400e3], rtol=1e-14)
+    # a tied name on an asymmetric base has no single nominal value
+    with pytest.raises(ValueError, match=r"`yaw_dampers.c` has no single value: its elements "
+                       r"differ \(yaw_dampers.left.c = 200000, yaw_dampers.right.c = 400000"):
+        select_parameters(p2, ["yaw_dampers.c"])
+    np.testing.assert_allclose(
+        select_parameters(p2, ["yaw_dampers.left.c"]).nominal, [200e3], rtol=1e-15
+    )
+
+
+@pytest.mark.parametrize(
+    "names, match",
+    [
+        (["primary.3L.kz"], r"unknown element '3L' in parameter 'primary.3L.kz' in `names`: the "
+         r"elements of `primary` are 1L, 1R, 2L, 2R"),
+        (["yaw_dampers.middle.c"], r"unknown element 'middle' in parameter "
+         r"'yaw_dampers.middle.c' in `names`: the elements of `yaw_dampers` are left, right"),
+        (["primary.kz", "primary.1L.kz"], r"`names` mixes the tied group `primary.kz` \(all its "
+         r"elements, one value\) with its member\(s\) `primary.1L.kz`"),
+        (["secondary.right.cy", "yaw_dampers.c", "secondary.cy", "secondary.left.cy"],
+         r"mixes the tied group `secondary.cy` .* `secondary.right.cy`, `secondary.left.cy`"),
+        (["primary.1L.kz", "primary.1L.kz"], "repeated: primary.1L.kz"),
+    ],
+)
+def test_bad_element_selections_are_rejected(nominal, names, match):
+    with pytest.raises(ValueError, match=match):
+        select_parameters(nominal, names)
 
 
 def test_log_scale_needs_a_positive_nominal(nominal):

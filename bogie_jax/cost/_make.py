@@ -34,6 +34,10 @@ def make_objective(
     **Arguments:**
     - `measurement`: a `Measurement` sampled at t = 0, 1/f_s, ... (the run starts at rest at
       t = 0 unless `y0` is given); its `speed` is the run's speed.
+    - `y0`: the initial state (20,); default `None`: at rest in the static equilibrium of the
+      parameters being evaluated, (q0(p(theta)), 0), computed inside the objective so that it
+      follows theta (differentiably, `bogie_jax.model.static_equilibrium`); zeros for a
+      symmetric bogie.
     - `params`: base parameters: nominal values of the selected parameters (theta = 0) and
       fixed values of the others. `track`: the track of the run.
     - `names`, `bounds`: the selection (see `select_parameters`).
@@ -41,7 +45,8 @@ def make_objective(
       must have a sensor of that name and unit; extra sensors are ignored.
     - `weights`: W per channel [1/unit^2]: `None` = 1 / noise_std^2 of each sensor, an array
       (n_channels,), or `{channel: weight}` (others keep the default). Must be finite, > 0.
-    - `options`, `y0`: the run (see `simulate`); `settings`: the solve, default
+    - `options`, `y0`: the run (see `simulate`; `y0=None` starts at the static equilibrium of
+      the parameters being evaluated); `settings`: the solve, default
       `SolveSettings.for_objective()` (PID rtol 1e-6, atol 1e-9, `max_steps=16_384`,
       `throw=False`: a failed solve gives infinite residuals instead of an error; reverse mode
       with one checkpoint per step, what `jax.grad` needs; the Jacobian path switches to forward

@@ -29,7 +29,9 @@ class ResidualModel(eqx.Module):
 
     Holds the measured data (`data` (n_times, n_channels) with missing samples set to 0 and
     `mask` True where present), `sqrt_weights` (n_channels,) = W^(1/2) [1/channel unit], the run
-    (`track`, `speed` [m/s], `duration` [s], `sample_rate` [Hz], `y0`), the `sensors` and the
+    (`track`, `speed` [m/s], `duration` [s], `sample_rate` [Hz], `y0`: a fixed initial state, or
+    `None` for the static equilibrium of the parameters `p` being evaluated, solved inside the
+    traced function), the `sensors` and the
     `SolveSettings` passed to `simulate` (default `SolveSettings.for_objective()`). Build it
     through `make_objective`.
     """

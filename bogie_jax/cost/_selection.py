@@ -5,10 +5,12 @@ theta_i = log(p_i / p0_i) for a positive quantity (log scale), or, for a paramet
 (inverse: p = lo + (hi - lo) sigmoid(theta + logit(u0))). Either way theta = 0 is the nominal
 value p0 taken from the base parameters, and every real theta maps to a valid value: the fit runs
 unconstrained (optimistix has no box bounds) and never clips inside the physics.
+
+Names are tied (`primary.kz`: one theta sets all four axleboxes) or one element
+(`primary.1L.kz`: one theta for that axlebox), see `bogie_jax.params`; a selection may not mix a
+tied group with one of its members.
 """
 
-import difflib
-import functools as ft
 import math
 from collections.abc import Mapping, Sequence
 
@@ -18,12 +20,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ..params import BogieParams, parameter_specs
-
-
-def get_parameter(params, name: str):
-    """The leaf of `params` at dotted path `name` (e.g. `primary.kz`)."""
-    return ft.reduce(getattr, name.split("."), params)
+from ..params import (
+    BogieParams,
+    get_parameter,
+    parameter_names as _parameter_names,
+    resolve_parameter,
+    set_parameters,
+)
 
 
 class ParameterSelection(eqx.Module):
@@ -73,14 +76,15 @@ class ParameterSelection(eqx.Module):
         return jnp.where(log, jnp.log(ratio), jnp.log(u) - jnp.log1p(-u) - logit0)
 
     def values(self, params: BogieParams) -> Float[Array, " n"]:
-        """The selected values of a parameter tree (physical units)."""
+        """The selected values of a parameter tree (physical units); a tied name of a
+        per-element field reads the common value of its elements (see `get_parameter`)."""
         return jnp.stack([jnp.asarray(get_parameter(params, n)) for n in self.names])
 
     def apply(self, params: BogieParams, theta) -> BogieParams:
-        """`params` with the selected parameters set from `theta`; the others unchanged."""
+        """`params` with the selected parameters set from `theta`; the others unchanged. A tied
+        name sets all its elements to one value, an element name that element only."""
         values = self.to_physical(theta)
-        where = lambda p: tuple(get_parameter(p, n) for n in self.names)
-        return eqx.tree_at(where, params, tuple(values[i] for i in range(self.n_params)))
+        return set_parameters(params, {n: values[i] for i, n in enumerate(self.names)})
 
     def describe(self, theta) -> dict[str, tuple[float, str]]:
         """`{name: (physical value, unit)}` for a concrete `theta`."""
@@ -98,17 +102,21 @@ def select_parameters(
     (theta = 0) values.
 
     **Arguments:**
-    - `names`: dotted names (`bogie_jax.params.parameter_names(params)` lists them all).
+    - `names`: dotted names, tied (`primary.kz`) or element (`primary.1L.kz`);
+      `bogie_jax.params.parameter_names(params, elements=True)` lists them all. A tied name of a
+      per-element field needs equal values over its elements in `params`.
     - `bounds`: `None`: every parameter on log scale (positive quantities); `"spec"`: every
       parameter scaled-logistic within its plausible bounds (`FieldSpec.bounds`); a mapping
       `{name: (lo, hi) | "spec"}`: those parameters scaled-logistic, the others log scale.
 
-    **Raises:** `ValueError` for an empty selection, unknown or repeated names, bounds for a name
-    that is not selected, bounds outside the valid range, `lo >= hi`, a nominal value that is not
+    **Raises:** `ValueError` for an empty selection, unknown or repeated names, an unknown element
+    (`primary.3L.kz`), a tied group together with one of its members (`primary.kz` and
+    `primary.1L.kz`), a tied name whose elements differ in `params`, bounds for a name that is
+    not selected, bounds outside the valid range, `lo >= hi`, a nominal value that is not
     strictly inside its bounds, or a non-positive nominal value on log scale.
     """
     names = _check_names(params, names)
-    specs = parameter_specs(params)
+    specs = {n: resolve_parameter(params, n).spec for n in names}
     per_name = _bounds_per_name(names, bounds)
     nominal, lower, upper, log_scale = [], [], [], []
     for name in names:
@@ -144,21 +152,24 @@ def _check_names(params, names) -> tuple[str, ...]:
     if isinstance(names, str):
         names = (names,)
     names = tuple(names)
-    valid = tuple(parameter_specs(params))
     if not names:
+        valid = _parameter_names(params, elements=True)
         raise ValueError(
             f"`names` is empty: select at least one parameter; valid: {', '.join(valid)}"
         )
-    for name in names:
-        if name not in valid:
-            close = difflib.get_close_matches(str(name), valid, n=3)
-            hint = f" (did you mean {', '.join(close)}?)" if close else ""
-            raise ValueError(
-                f"unknown parameter {name!r} in `names`{hint}; valid names: {', '.join(valid)}"
-            )
+    resolved = [resolve_parameter(params, name, " in `names`") for name in names]
     dups = sorted({n for n in names if names.count(n) > 1})
     if dups:
         raise ValueError(f"`names` must not repeat a parameter; repeated: {', '.join(dups)}")
+    tied = {r.tied_name for r in resolved if r.is_tied_group}
+    for group in sorted(tied):
+        members = [r.name for r in resolved if r.element is not None and r.tied_name == group]
+        if members:
+            raise ValueError(
+                f"`names` mixes the tied group `{group}` (all its elements, one value) with its "
+                f"member(s) {', '.join(f'`{m}`' for m in members)}: select either `{group}` or "
+                "element names only"
+            )
     return names
 
 

@@ -15,7 +15,7 @@ import jax.random as jr
 import numpy as np
 
 from ..cost import get_parameter, make_objective, select_parameters
-from ..params import PARAMETER_SETS, parameter_specs
+from ..params import PARAMETER_SETS, parameter_specs, set_parameters
 from ..simulate import SolveSettings
 from ..track import TrackReference
 
@@ -68,7 +68,7 @@ def tolerance_bounds(params, names, band: float) -> dict:
     """`{name: (lo, hi)}`: the band `nominal * (1 -+ band)`, clipped into each valid range."""
     if not 0 < band < 1:
         raise ValueError(f"`band` must be in (0, 1), got {band:g}")
-    specs = parameter_specs(params)
+    specs = parameter_specs(params, elements=True)
     out = {}
     for name in names:
         if name not in specs:
@@ -92,8 +92,8 @@ class SyntheticProblem(eqx.Module):
 
 def true_params(nominal, offsets: dict):
     names = tuple(offsets)
-    values = tuple(float(np.asarray(get_parameter(nominal, n))) * float(offsets[n]) for n in names)
-    return eqx.tree_at(lambda p: tuple(get_parameter(p, n) for n in names), nominal, values)
+    values = {n: float(np.asarray(get_parameter(nominal, n))) * float(offsets[n]) for n in names}
+    return set_parameters(nominal, values)
 
 
 def as_scenario(scenario) -> Scenario:

@@ -9,6 +9,11 @@ from ._dynamics import (
     track_inputs as track_inputs,
     vector_field as vector_field,
 )
+from ._equilibrium import (
+    equilibrium_residual as equilibrium_residual,
+    static_equilibrium as static_equilibrium,
+    static_equilibrium_solve as static_equilibrium_solve,
+)
 from ._layout import (
     DOF_NAMES as DOF_NAMES,
     DOF_UNITS as DOF_UNITS,

@@ -4,7 +4,9 @@ Each element joins a frame point A to a point B on a wheelset (primary) or on th
 (secondary, anti-yaw dampers; the car body moves at constant speed). The deformation
 Delta = r_A - r_B is measured in track (inertial) axes from the static equilibrium, so it is zero
 for q = 0 on a perfect track. The force on A is -(K Delta + C Delta_dot + P), on B the opposite;
-P is the static preload (primary springs carry frame and car body, secondary springs the car body).
+P is the static preload (primary springs carry frame and car body, secondary springs the car body;
+split over a group in proportion to the vertical stiffnesses, `spring_preloads`). Each element
+has its own K and C (per-element parameters, `bogie_jax.params`).
 
 Element order (8 elements): primary (wheelset 1 left, 1 right, 2 left, 2 right),
 secondary (left, right), anti-yaw dampers (left, right).
@@ -70,26 +72,60 @@ def blowoff_damper(rate, c, blowoff_velocity, c_blowoff):
     return jnp.where(jnp.abs(rate) <= blowoff_velocity, c * rate, jnp.sign(rate) * beyond)
 
 
+def spring_preloads(kz, design_load):
+    """Static vertical forces [N] of a group of vertical springs (the four primary or the two
+    secondary springs) at q = 0, from their stiffnesses `kz` (n,) [N/m] and the group's nominal
+    design load per spring `design_load` [N] (docs/model.md, "Suspension elements").
+
+    The springs of a group have equal free lengths, set so that at q = 0 they are compressed by
+    d = design_load / mean(kz): P_i = kz_i d = design_load kz_i / mean(kz). A symmetric group
+    carries exactly the design load each (q = 0 is the rest state, as before per-element
+    values); an uneven group carries the same total with another split at q = 0 and settles to
+    a tilted rest state (`static_equilibrium`). A group without vertical stiffness (mean 0)
+    carries the design load each. The mean is x_0 + mean(x - x_0), exact for equal values.
+    """
+    mean = kz[0] + jnp.mean(kz - kz[0])
+    loaded = mean > 0
+    return design_load * jnp.where(loaded, kz / jnp.where(loaded, mean, 1.0), 1.0)
+
+
 def element_forces(delta, delta_rate, params: BogieParams, const: ModelConstants, options: ModelOptions):
-    """Element forces f = K Delta + C Delta_dot + P [N], shape (8, 3); the force on A is -f."""
+    """Element forces f = K Delta + C Delta_dot + P [N], shape (8, 3); the force on A is -f.
+
+    K, C per element from the per-element parameters (primary per axlebox 1L, 1R, 2L, 2R;
+    secondary and anti-yaw dampers per side), P from `spring_preloads`.
+    """
     p, s, yd = params.primary, params.secondary, params.yaw_dampers
-    zero = jnp.zeros_like(p.kx)
-    k = jnp.stack(
-        [jnp.stack([p.kx, p.ky, p.kz])] * N_PRIMARY
-        + [jnp.stack([s.kx, s.ky, s.kz])] * N_SECONDARY
-        + [jnp.stack([zero, zero, zero])] * N_YAW
+    per_box = lambda x: jnp.broadcast_to(x, (N_PRIMARY,))  # noqa: E731
+    per_side = lambda x: jnp.broadcast_to(x, (N_SECONDARY,))  # noqa: E731
+    zero = jnp.zeros(N_YAW, dtype=jnp.result_type(p.kx, float))
+    k = jnp.concatenate(
+        [
+            jnp.stack([per_box(p.kx), per_box(p.ky), per_box(p.kz)], -1),
+            jnp.stack([per_side(s.kx), per_side(s.ky), per_side(s.kz)], -1),
+            jnp.stack([zero, zero, zero], -1),
+        ]
     )
-    c = jnp.stack(
-        [jnp.stack([p.cx, p.cy, p.cz])] * N_PRIMARY
-        + [jnp.stack([zero, s.cy, s.cz])] * N_SECONDARY
-        + [jnp.stack([yd.c, zero, zero])] * N_YAW
+    yaw_c = per_side(yd.c)
+    c = jnp.concatenate(
+        [
+            jnp.stack([per_box(p.cx), per_box(p.cy), per_box(p.cz)], -1),
+            jnp.stack([zero, per_side(s.cy), per_side(s.cz)], -1),
+            jnp.stack([yaw_c, zero, zero], -1),
+        ]
     )
     preload_z = jnp.concatenate(
-        [jnp.full(N_PRIMARY, -const.primary_preload), jnp.full(N_SECONDARY, const.secondary_preload), jnp.zeros(N_YAW)]
+        [
+            -spring_preloads(per_box(p.kz), const.primary_preload),
+            spring_preloads(per_side(s.kz), const.secondary_preload),
+            zero,
+        ]
     )
     f = k * delta + c * delta_rate + jnp.stack([jnp.zeros(8), jnp.zeros(8), preload_z], -1)
     if options.nonlinear_dampers:
         yaw_rate = delta_rate[-N_YAW:, 0]
-        nonlinear = blowoff_damper(yaw_rate, yd.c, yd.blowoff_velocity, yd.c_blowoff)
+        nonlinear = blowoff_damper(
+            yaw_rate, yaw_c, per_side(yd.blowoff_velocity), per_side(yd.c_blowoff)
+        )
         f = f.at[-N_YAW:, 0].set(nonlinear)
     return f

@@ -1,7 +1,16 @@
-"""Typed physical parameters of the bogie (SI units, with bounds)."""
+"""Typed physical parameters of the bogie (SI units, with bounds).
+
+Suspension parameters are per element: `PrimarySuspension` holds one value per axlebox
+(`AXLEBOXES` = 1L, 1R, 2L, 2R: wheelset 1 leading at x = +a, L = +y), `SecondarySuspension` and
+`YawDampers` one per side (`SIDES` = left, right); a scalar is broadcast to all elements.
+Parameter names: tied (`primary.kz`, all four axleboxes together; `masses.frame.mass`) or one
+element (`primary.1L.kz`, `secondary.left.cy`, `yaw_dampers.right.c`); see `_paths.py`.
+"""
 
 from ._bogie import BogieParams as BogieParams, ModelOptions as ModelOptions
 from ._groups import (
+    AXLEBOXES as AXLEBOXES,
+    SIDES as SIDES,
     BodyInertia as BodyInertia,
     Geometry as Geometry,
     Masses as Masses,
@@ -10,7 +19,15 @@ from ._groups import (
     WheelRailContact as WheelRailContact,
     YawDampers as YawDampers,
 )
-from ._paths import parameter_names as parameter_names, parameter_specs as parameter_specs
+from ._paths import (
+    ParameterPath as ParameterPath,
+    element_names as element_names,
+    get_parameter as get_parameter,
+    parameter_names as parameter_names,
+    parameter_specs as parameter_specs,
+    resolve_parameter as resolve_parameter,
+    set_parameters as set_parameters,
+)
 from ._sets import (
     PARAMETER_SETS as PARAMETER_SETS,
     crh380a as crh380a,

@@ -29,9 +29,13 @@ class ModelOptions(eqx.Module):
 
 
 class BogieParams(eqx.Module):
-    """All physical parameters of the bogie: a pytree whose leaves are scalars in SI units.
+    """All physical parameters of the bogie: a pytree whose leaves are arrays in SI units,
+    scalars except the suspension fields (one value per element: (4,) per axlebox, (2,) per
+    side).
 
-    Parameter names are the tree paths, e.g. `primary.kz` or `masses.frame.mass`.
+    Parameter names are the tree paths, e.g. `primary.kz` (all four axleboxes tied) or
+    `masses.frame.mass`, or element names, e.g. `primary.1L.kz` or `yaw_dampers.left.c`
+    (`bogie_jax.params.parameter_names(params, elements=True)` lists both kinds).
     """
 
     masses: Masses

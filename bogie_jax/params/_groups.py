@@ -3,13 +3,14 @@
 Defaults are not given here: named parameter sets live in `_sets.py`. Each field carries its
 unit, its physically valid range (outside raises `ParameterError`) and plausible bounds used by
 identification and sensitivity studies (reference doc section 5 "Typical parameter values").
+Suspension fields hold one value per element (axlebox or side, see `AXLEBOXES`, `SIDES`).
 """
 
 import math
 
 import equinox as eqx
 
-from ._spec import _is_concrete, ParameterError, physical, validate_fields
+from ._spec import ParameterError, _is_concrete, physical, validate_fields
 
 
 INF = math.inf
@@ -111,38 +112,62 @@ class WheelRailContact(_Group):
     )
 
 
-class PrimarySuspension(_Group):
-    """Primary suspension, values per axlebox (all four axleboxes identical), track axes."""
+AXLEBOXES = ("1L", "1R", "2L", "2R")
+"""Primary suspension elements: wheelset 1 (leading, x = +a) and 2 (x = -a), left (+y) and
+right (-y) axlebox, in this order."""
+SIDES = ("left", "right")
+"""Secondary suspension and anti-yaw damper elements: left (+y), right (-y), in this order."""
 
-    kx: float = physical(unit="N/m", valid=(0.0, 1e10), bounds=(5e6, 4e7), doc="longitudinal stiffness")
-    ky: float = physical(unit="N/m", valid=(0.0, 1e10), bounds=(2e6, 1e7), doc="lateral stiffness")
-    kz: float = physical(unit="N/m", valid=(0.0, 1e10), bounds=(4e5, 2e6), doc="vertical stiffness")
-    cx: float = physical(unit="N s/m", valid=(0.0, 1e8), bounds=(5e3, 3e4), doc="longitudinal damping")
-    cy: float = physical(unit="N s/m", valid=(0.0, 1e8), bounds=(1e3, 1e4), doc="lateral damping")
-    cz: float = physical(unit="N s/m", valid=(0.0, 1e8), bounds=(2e3, 1.5e4), doc="vertical damping")
+
+def _axlebox(**kw):
+    return physical(elements=AXLEBOXES, **kw)
+
+
+def _side(**kw):
+    return physical(elements=SIDES, **kw)
+
+
+class PrimarySuspension(_Group):
+    """Primary suspension, one value per axlebox (`AXLEBOXES`: 1L, 1R, 2L, 2R), track axes.
+
+    Each field is an array of shape (4,); a scalar is broadcast (all four axleboxes equal, the
+    named sets). Parameter names: `primary.kz` for the four tied together, `primary.1L.kz` for
+    one axlebox.
+    """
+
+    kx: float = _axlebox(unit="N/m", valid=(0.0, 1e10), bounds=(5e6, 4e7), doc="longitudinal stiffness")
+    ky: float = _axlebox(unit="N/m", valid=(0.0, 1e10), bounds=(2e6, 1e7), doc="lateral stiffness")
+    kz: float = _axlebox(unit="N/m", valid=(0.0, 1e10), bounds=(4e5, 2e6), doc="vertical stiffness")
+    cx: float = _axlebox(unit="N s/m", valid=(0.0, 1e8), bounds=(5e3, 3e4), doc="longitudinal damping")
+    cy: float = _axlebox(unit="N s/m", valid=(0.0, 1e8), bounds=(1e3, 1e4), doc="lateral damping")
+    cz: float = _axlebox(unit="N s/m", valid=(0.0, 1e8), bounds=(2e3, 1.5e4), doc="vertical damping")
 
 
 class SecondarySuspension(_Group):
-    """Secondary suspension between frame and car body, values per side, track axes."""
+    """Secondary suspension between frame and car body, one value per side (`SIDES`: left,
+    right), track axes. Fields of shape (2,); a scalar is broadcast. Names: `secondary.cy` (both
+    sides tied) or `secondary.left.cy`."""
 
-    kx: float = physical(unit="N/m", valid=(0.0, 1e10), bounds=(1e5, 3e5), doc="longitudinal stiffness")
-    ky: float = physical(unit="N/m", valid=(0.0, 1e10), bounds=(1e5, 3e5), doc="lateral stiffness")
-    kz: float = physical(unit="N/m", valid=(0.0, 1e10), bounds=(1.5e5, 6e5), doc="vertical stiffness")
-    cy: float = physical(unit="N s/m", valid=(0.0, 1e8), bounds=(1e4, 8e4), doc="lateral damping")
-    cz: float = physical(unit="N s/m", valid=(0.0, 1e8), bounds=(1e4, 8e4), doc="vertical damping")
+    kx: float = _side(unit="N/m", valid=(0.0, 1e10), bounds=(1e5, 3e5), doc="longitudinal stiffness")
+    ky: float = _side(unit="N/m", valid=(0.0, 1e10), bounds=(1e5, 3e5), doc="lateral stiffness")
+    kz: float = _side(unit="N/m", valid=(0.0, 1e10), bounds=(1.5e5, 6e5), doc="vertical stiffness")
+    cy: float = _side(unit="N s/m", valid=(0.0, 1e8), bounds=(1e4, 8e4), doc="lateral damping")
+    cz: float = _side(unit="N s/m", valid=(0.0, 1e8), bounds=(1e4, 8e4), doc="vertical damping")
 
 
 class YawDampers(_Group):
-    """Anti-yaw (longitudinal) dampers between frame and car body, one per side.
+    """Anti-yaw (longitudinal) dampers between frame and car body, one per side (`SIDES`: left,
+    right). Fields of shape (2,); a scalar is broadcast. Names: `yaw_dampers.c` (both tied) or
+    `yaw_dampers.left.c`.
 
     Linear with `c` up to `blowoff_velocity`, then slope `c_blowoff` (used only when the model
     option `nonlinear_dampers` is on; reference doc 5.2, CRH380A yaw damper).
     """
 
-    c: float = physical(unit="N s/m", valid=(0.0, 1e8), bounds=(1e5, 2e6), doc="damping per damper")
-    blowoff_velocity: float = physical(
+    c: float = _side(unit="N s/m", valid=(0.0, 1e8), bounds=(1e5, 2e6), doc="damping per damper")
+    blowoff_velocity: float = _side(
         unit="m/s", valid=(1e-6, 10.0), bounds=(0.005, 0.05), doc="blow-off velocity"
     )
-    c_blowoff: float = physical(
+    c_blowoff: float = _side(
         unit="N s/m", valid=(0.0, 1e8), bounds=(1e3, 1e5), doc="damping above blow-off velocity"
     )

@@ -25,9 +25,12 @@ automatic differentiation; this twin derives the same equations a different way,
 - Gravity is the force m g on each CG. Wheel-rail normal forces are constraint forces and do
   not appear (the wheelset kinematics already satisfy the contact constraints).
 
-Only the derived constants (contact geometry coefficients, preloads, static normal load and
+Only the derived contact constants (contact geometry coefficients, static normal load and
 Kalker coefficients) are taken from `bogie_jax.model.model_constants`; they are tested against
-published tables elsewhere.
+published tables elsewhere. Suspension parameters are per element (primary per axlebox 1L, 1R,
+2L, 2R; secondary and anti-yaw dampers per side left, right), and the spring preloads are
+computed here from the masses and the vertical stiffnesses (docs/model.md: equal free lengths in
+each group of vertical springs).
 
 The wheelset inertia must be axisymmetric (ixx == izz): the specification describes the
 orientation of the spinning wheelset by the non-spinning R_i, which is exact only then.
@@ -115,14 +118,14 @@ class TwinConstants:
     mu: float
     clearance: float
     k_flange: float
-    # suspension
-    k_p: np.ndarray
-    c_p: np.ndarray
-    k_s: np.ndarray
-    c_s: np.ndarray
-    c_yd: float
-    v_blowoff: float
-    c_blowoff: float
+    # suspension, per element: rows 1L, 1R, 2L, 2R (primary) and left, right (secondary, yaw)
+    k_p: np.ndarray  # (4, 3) stiffness (x, y, z) per axlebox
+    c_p: np.ndarray  # (4, 3) damping per axlebox
+    k_s: np.ndarray  # (2, 3) per side
+    c_s: np.ndarray  # (2, 3) per side (no longitudinal damping)
+    c_yd: np.ndarray  # (2,) anti-yaw damper per side
+    v_blowoff: np.ndarray  # (2,)
+    c_blowoff: np.ndarray  # (2,)
     # derived (from bogie_jax.model.model_constants)
     lam: float
     sigma: float
@@ -130,8 +133,8 @@ class TwinConstants:
     zeta: float
     xi: float
     delta0: float
-    f_p: float
-    f_s: float
+    f_p: np.ndarray  # (4,) static force of each primary spring at q = 0
+    f_s: np.ndarray  # (2,) static force of each secondary spring at q = 0
     n0: float
     f11: float
     f22: float
@@ -149,6 +152,15 @@ class TwinConstants:
         m, g, c = params.masses, params.geometry, params.contact
         p, s, yd = params.primary, params.secondary, params.yaw_dampers
         geo, creep = derived.geometry, derived.creep
+
+        def per(x, n):
+            return np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy()
+
+        k_p = np.stack([per(p.kx, 4), per(p.ky, 4), per(p.kz, 4)], axis=1)
+        k_s = np.stack([per(s.kx, 2), per(s.ky, 2), per(s.kz, 2)], axis=1)
+        # design loads: frame and car body on four primary springs, car body on two secondary
+        load_p = (f(m.frame.mass) + f(m.carbody_mass)) * GRAVITY / 4
+        load_s = f(m.carbody_mass) * GRAVITY / 2
         return cls(
             m_f=f(m.frame.mass),
             j_f=np.array([f(m.frame.ixx), f(m.frame.iyy), f(m.frame.izz)]),
@@ -167,26 +179,36 @@ class TwinConstants:
             mu=f(c.friction),
             clearance=f(c.flange_clearance),
             k_flange=f(c.flange_stiffness),
-            k_p=np.array([f(p.kx), f(p.ky), f(p.kz)]),
-            c_p=np.array([f(p.cx), f(p.cy), f(p.cz)]),
-            k_s=np.array([f(s.kx), f(s.ky), f(s.kz)]),
-            c_s=np.array([0.0, f(s.cy), f(s.cz)]),
-            c_yd=f(yd.c),
-            v_blowoff=f(yd.blowoff_velocity),
-            c_blowoff=f(yd.c_blowoff),
+            k_p=k_p,
+            c_p=np.stack([per(p.cx, 4), per(p.cy, 4), per(p.cz, 4)], axis=1),
+            k_s=k_s,
+            c_s=np.stack([np.zeros(2), per(s.cy, 2), per(s.cz, 2)], axis=1),
+            c_yd=per(yd.c, 2),
+            v_blowoff=per(yd.blowoff_velocity, 2),
+            c_blowoff=per(yd.c_blowoff, 2),
             lam=f(geo.conicity),
             sigma=f(geo.roll_coefficient),
             eps=f(geo.contact_angle_coefficient),
             zeta=f(geo.vertical_lateral_coefficient),
             xi=f(geo.vertical_yaw_coefficient),
             delta0=f(geo.cone_angle),
-            f_p=f(derived.primary_preload),
-            f_s=f(derived.secondary_preload),
+            f_p=_equal_free_length_loads(k_p[:, 2], load_p),
+            f_s=_equal_free_length_loads(k_s[:, 2], load_s),
             n0=f(derived.static_normal_load),
             f11=f(creep.f11),
             f22=f(creep.f22),
             f23=f(creep.f23),
         )
+
+
+def _equal_free_length_loads(kz: np.ndarray, design_load: float) -> np.ndarray:
+    """Static forces [N] at q = 0 of vertical springs with equal free lengths: compressed by
+    d = design_load / mean(kz), spring i carries kz_i d (the design load each when all kz are
+    equal; the design load each when the group has no stiffness)."""
+    mean = float(np.mean(kz))
+    if mean <= 0.0:
+        return np.full(kz.shape, design_load)
+    return kz * (design_load / mean)
 
 
 @dataclass
@@ -445,11 +467,12 @@ class BogieTwin:
     # ------------------------------------------------------------------------------------
     # Applied forces: resultant force and moment about each CG
     # ------------------------------------------------------------------------------------
-    def _yaw_damper_force(self, rate: float) -> float:
+    def _yaw_damper_force(self, side: int, rate: float) -> float:
         k = self.k
-        if not self.options.nonlinear_dampers or abs(rate) <= k.v_blowoff:
-            return k.c_yd * rate
-        return np.sign(rate) * (k.c_yd * k.v_blowoff + k.c_blowoff * (abs(rate) - k.v_blowoff))
+        c, v_b, c_b = k.c_yd[side], k.v_blowoff[side], k.c_blowoff[side]
+        if not self.options.nonlinear_dampers or abs(rate) <= v_b:
+            return c * rate
+        return np.sign(rate) * (c * v_b + c_b * (abs(rate) - v_b))
 
     def applied_loads(self, t, q, qd, *, pose=None, vel=None, track=None, details=None):
         """Resultant applied force and moment (about the CG) on frame, wheelset 1, wheelset 2,
@@ -489,21 +512,22 @@ class BogieTwin:
                 rb = ws.rot @ np.array([0.0, sgn * k.b_p, 0.0])
                 delta = (pose.cg_f + ra) - (ws.centre + rb)
                 delta_dot = (v_f + cross(om_f, ra)) - (c_dot + cross(om_r, rb))
-                f_b = k.k_p * delta + k.c_p * delta_dot + np.array([0.0, 0.0, -k.f_p])
+                e = 2 * i + side  # axlebox 1L, 1R, 2L, 2R
+                f_b = k.k_p[e] * delta + k.c_p[e] * delta_dot + np.array([0.0, 0.0, -k.f_p[e]])
                 add(0, ra, -f_b)
                 add(1 + i, rb, f_b)
                 vertical_loads[i, side] = -f_b[2]
 
         # secondary suspension and anti-yaw dampers: frame point A, car-body point B fixed
-        for sgn in (1.0, -1.0):
+        for side, sgn in enumerate((1.0, -1.0)):
             ra = pose.rot_f @ np.array([0.0, sgn * k.b_s, k.h_s - k.h_f])
             delta = pose.cg_f + ra - np.array([0.0, sgn * k.b_s, k.h_s])
             delta_dot = v_f + cross(om_f, ra)
-            f = k.k_s * delta + k.c_s * delta_dot + np.array([0.0, 0.0, k.f_s])
+            f = k.k_s[side] * delta + k.c_s[side] * delta_dot + np.array([0.0, 0.0, k.f_s[side]])
             add(0, ra, -f)
             ra = pose.rot_f @ np.array([0.0, sgn * k.b_yd, k.h_s - k.h_f])
             delta_dot = v_f + cross(om_f, ra)
-            add(0, ra, -np.array([self._yaw_damper_force(delta_dot[0]), 0.0, 0.0]))
+            add(0, ra, -np.array([self._yaw_damper_force(side, delta_dot[0]), 0.0, 0.0]))
 
         # creep forces at the wheel material points
         for i, ws in enumerate(pose.wheelsets):

@@ -1,0 +1,147 @@
+"""Static equilibrium (`bogie_jax.model.static_equilibrium`): the rest state on a perfect track.
+
+Checked against an independent solve of the numpy twin's accelerations (`scipy.optimize.root`
+on `tests/reference/bogie_twin.py`), for the symmetric named sets (zeros) and an asymmetric
+bogie (left anti-yaw damper at 0, primary 1L vertical spring +30 %, secondary left lateral
+damper at 50 %); its derivative (implicit function theorem) against central differences; and a
+simulation started there (the default initial state of `simulate`) stays there.
+"""
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.optimize
+
+import bogie_jax as bj
+from bogie_jax.model import equilibrium_residual, static_equilibrium, static_equilibrium_solve
+from bogie_jax.params import PARAMETER_SETS, set_parameters
+from bogie_jax.simulate import simulate
+from bogie_jax.track import perfect_track
+
+
+try:
+    from reference.bogie_twin import BogieTwin
+except ImportError:  # tests/ imported as a package
+    from tests.reference.bogie_twin import BogieTwin
+
+
+def _asymmetric(params):
+    return set_parameters(
+        params,
+        {
+            "yaw_dampers.left.c": 0.0,
+            "primary.1L.kz": 1.3 * float(params.primary.kz[0]),
+            "secondary.left.cy": 0.5 * float(params.secondary.cy[0]),
+        },
+    )
+
+
+@pytest.fixture(scope="module")
+def solve():
+    return eqx.filter_jit(static_equilibrium_solve)
+
+
+@pytest.fixture(scope="module")
+def residual():
+    return eqx.filter_jit(equilibrium_residual)
+
+
+@pytest.fixture(scope="module")
+def asymmetric():
+    return _asymmetric(bj.manchester_benchmark())
+
+
+@pytest.fixture(scope="module")
+def q0(solve, asymmetric):
+    return np.asarray(solve(asymmetric).value)
+
+
+def _twin_equilibrium(params):
+    """Independent solve: scipy's hybrid Powell method on the twin's accelerations at zero
+    velocity on a perfect track."""
+    twin = BogieTwin(params, 50.0)
+    sol = scipy.optimize.root(
+        lambda q: twin.qddot(0.0, q, np.zeros(10)), np.zeros(10), method="hybr", tol=1e-14
+    )
+    assert sol.success, sol.message
+    return sol.x, twin
+
+
+@pytest.mark.parametrize("name", sorted(PARAMETER_SETS))
+def test_symmetric_sets_rest_at_zero(solve, name):
+    """A symmetric bogie's springs carry their design loads at q = 0: q0 = 0 to 1e-12."""
+    sol = solve(PARAMETER_SETS[name]())
+    assert np.abs(np.asarray(sol.value)).max() <= 1e-12
+
+
+def test_asymmetric_rest_state_matches_the_twin(asymmetric, q0, residual):
+    """The asymmetric bogie settles with heave, roll and pitch; the JAX residual is below
+    1e-10 (m/s^2, rad/s^2) and q0 agrees with scipy's root of the twin's accelerations to
+    1e-8 of its largest entry; the wheel loads shift (twin's normal loads at q0)."""
+    res = np.abs(np.asarray(residual(asymmetric, jnp.asarray(q0)))).max()
+    assert res < 1e-10, res
+    q_twin, twin = _twin_equilibrium(asymmetric)
+    error = np.abs(q0 - q_twin).max() / np.abs(q_twin).max()
+    print(f"equilibrium residual {res:.2e}, JAX vs twin {error:.2e} relative; q0 = {q0}")
+    assert error <= 1e-8, (q0, q_twin)
+    assert np.abs(twin.qddot(0.0, q0, np.zeros(10))).max() < 1e-8
+    assert np.all(np.abs(q0[2:5]) > 1e-5), q0  # heave [m], roll and pitch [rad]
+    loads = [c["normal_load"] for c in twin.creep_details(0.0, np.concatenate([q0, np.zeros(10)]))]
+    nominal = [c["normal_load"] for c in BogieTwin(bj.manchester_benchmark(), 50.0).creep_details(
+        0.0, np.zeros(20))]
+    assert np.abs(np.asarray(loads) / nominal - 1).max() > 1e-2, loads
+
+
+def test_rest_state_jacobian_is_non_singular(residual, asymmetric, q0):
+    """All 10 coordinates are held at rest: da/dq at q0 (central differences of the compiled
+    residual, step 1e-7 m or rad) is well conditioned (the wheelsets are held by the primary
+    springs, the gravitational stiffness and creep)."""
+    h = 1e-7
+    cols = [
+        (np.asarray(residual(asymmetric, jnp.asarray(q0 + h * e)))
+         - np.asarray(residual(asymmetric, jnp.asarray(q0 - h * e)))) / (2 * h)
+        for e in np.eye(10)
+    ]
+    sv = np.linalg.svd(np.stack(cols, axis=1), compute_uv=False)
+    print("singular values of da/dq at q0:", sv)
+    assert sv.min() > 1e-4 * sv.max(), sv
+
+
+def test_rest_state_derivative_matches_central_differences(solve, asymmetric):
+    """dq0/dk for k = primary 1L vertical stiffness by the implicit function theorem, forward
+    (jvp) and reverse (vjp) mode through `static_equilibrium`, against central differences
+    (step 1e-4 k): 1e-6 relative to the largest entry."""
+    k = float(asymmetric.primary.kz[0])
+
+    @eqx.filter_jit
+    def derivatives(params, kz):
+        def q_of(kz_):
+            return static_equilibrium(set_parameters(params, {"primary.1L.kz": kz_}))
+
+        return jax.jvp(q_of, (kz,), (jnp.ones_like(kz),))[1], jax.jacrev(q_of)(kz)
+
+    fwd, rev = derivatives(asymmetric, jnp.asarray(k))
+    h = 1e-4 * k
+    q = [solve(set_parameters(asymmetric, {"primary.1L.kz": kz})).value for kz in (k + h, k - h)]
+    fd = (np.asarray(q[0]) - np.asarray(q[1])) / (2 * h)
+    scale = np.abs(fd).max()
+    assert scale > 0
+    np.testing.assert_allclose(np.asarray(fwd), fd, rtol=0, atol=1e-6 * scale)
+    np.testing.assert_allclose(np.asarray(rev), fd, rtol=0, atol=1e-6 * scale)
+
+
+def test_simulation_from_rest_stays_at_rest(asymmetric, q0):
+    """`simulate`'s default initial state is (q0, 0): 1 s on a perfect track at 50 m/s stays
+    within 1e-9 of q0 (m, rad)."""
+    run = jax.jit(
+        lambda p: simulate(
+            p, perfect_track(), speed=50.0, duration=1.0, sample_rate=100.0,
+            stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-11),
+        ).q
+    )(asymmetric)
+    drift = np.abs(np.asarray(run) - q0).max()
+    print(f"drift from rest over 1 s: {drift:.2e}")
+    assert drift < 1e-9, drift
