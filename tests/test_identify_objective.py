@@ -205,6 +205,8 @@ def test_cli_list_params(capsys):
     assert _run(_parse(["--list-params"])) == 0
     out = capsys.readouterr().out
     assert "yaw_dampers.c" in out and "N s/m" in out and "nominal" in out
+    # both kinds of name: tied groups and single elements (issue 17)
+    assert "yaw_dampers.left.c" in out and "primary.1L.kz" in out and "secondary.right.cy" in out
 
 
 @pytest.mark.parametrize(

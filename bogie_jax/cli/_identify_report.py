@@ -11,9 +11,11 @@ from ._common import text_table
 
 
 def list_params(params) -> str:
-    """The table printed by `--list-params`: name, unit, nominal value, plausible bounds."""
+    """The table printed by `--list-params`: name, unit, nominal value, plausible bounds. Each
+    suspension parameter appears as its tied group (`primary.kz`: all four axleboxes, one value)
+    followed by its single elements (`primary.1L.kz`, ...)."""
     rows = [("parameter", "unit", "nominal", "lower", "upper", "description")]
-    for name, spec in parameter_specs(params).items():
+    for name, spec in parameter_specs(params, elements=True).items():
         p0 = float(np.asarray(get_parameter(params, name)))
         rows.append(
             (
