@@ -20,6 +20,7 @@ LAYERS = {
     "_precision": 0,
     "_validation": 0,
     "params": 0,
+    "qmc": 0,  # quasi-Monte Carlo points (multistart designs, Sobol' indices)
     "contact": 1,
     "track": 1,
     "model": 2,

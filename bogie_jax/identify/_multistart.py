@@ -12,7 +12,6 @@ Distinct minima are clustered on the host in box-normalised coordinates.
 
 import abc
 import time
-import warnings
 
 import equinox as eqx
 import jax
@@ -21,6 +20,7 @@ import jax.random as jr
 import numpy as np
 
 from ..batch import batch_runner
+from ..qmc import sobol_sequence
 from ._iteration import queue_lanes, queued_fits, supports_queue
 from ._local import FitResult, as_method, statistics
 from ._problem import (
@@ -54,17 +54,13 @@ class LatinHypercube(AbstractDesign):
 
 
 class Sobol(AbstractDesign):
-    """Scrambled Sobol sequence (scipy.stats.qmc, seeded from `key`)."""
+    """Scrambled Sobol' points (`bogie_jax.qmc.sobol_sequence`): the first `n` of the next
+    power-of-two design, so any start count works (balance holds exactly for powers of two)."""
 
     margin: float = 1e-6
 
     def sample(self, key, n, dim):
-        from scipy.stats import qmc
-
-        seed = int(jr.randint(key, (), 0, np.iinfo(np.int32).max))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # balance warning for n != 2^k
-            u = qmc.Sobol(dim, scramble=True, seed=seed).random(n)
+        u = np.asarray(sobol_sequence(max(2, 1 << (int(n) - 1).bit_length()), dim, key=key))[:n]
         return self.margin + (1.0 - 2.0 * self.margin) * u
 
 

@@ -4,19 +4,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-
-def check_power_of_two(name: str, value) -> int:
-    """Return `value` as an int, or raise ValueError unless it is a power of two >= 2."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise TypeError(f"`{name}` must be an integer power of two, got {value!r}")
-    value = int(value)
-    if value < 2 or value & (value - 1):
-        below = 1 << max(value.bit_length() - 1, 1)
-        raise ValueError(
-            f"`{name}` must be a power of two >= 2 (the balance properties of a Sobol' design "
-            f"hold only then), got {value}; try {below} or {2 * below}"
-        )
-    return value
+from .._validation import check_power_of_two as check_power_of_two
 
 
 def check_positive_int(name: str, value, lo: int = 1) -> int:
