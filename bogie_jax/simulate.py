@@ -65,6 +65,20 @@ def sample_times(duration: float, sample_rate: float):
     return jnp.arange(n) / sample_rate
 
 
+def sample_accelerations(model, ts, q, qd):
+    """q_ddot (n, 10) at the samples `ts` [s] from the equations of motion (paper eq. 11).
+
+    Non-finite entries of q, q_dot (the samples a failed solve did not reach) are evaluated at 0
+    and the rows holding them set to NaN: values and derivatives stay finite elsewhere
+    (double-where), and a caller that zeroes the non-finite samples gets finite derivatives.
+    """
+    finite = jnp.all(jnp.isfinite(q) & jnp.isfinite(qd), axis=-1, keepdims=True)
+    q_safe = jnp.where(jnp.isfinite(q), q, 0.0)
+    qd_safe = jnp.where(jnp.isfinite(qd), qd, 0.0)
+    qdd = jax.vmap(lambda t, a, b: accelerations(model, t, a, b))(ts, q_safe, qd_safe)
+    return jnp.where(finite, qdd, jnp.nan)
+
+
 def simulate(
     params: BogieParams,
     track: TrackIrregularity,
@@ -121,7 +135,7 @@ def simulate(
         throw=settings.throw,
     )
     q, qd = solution.ys[:, :N_DOF], solution.ys[:, N_DOF:]
-    qdd = jax.vmap(lambda t, a, b: accelerations(model, t, a, b))(ts, q, qd)
+    qdd = sample_accelerations(model, ts, q, qd)
     result = solution.result
     if rest is not None:
         at_rest = rest.result == optx.RESULTS.successful

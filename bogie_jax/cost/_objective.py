@@ -16,7 +16,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ..measure import readings_from_states
+from ..measure import sensor_readings
 from ..model import build_model
 from ..params import BogieParams, ModelOptions
 from ..simulate import SolveSettings, Trajectory, simulate
@@ -77,7 +77,13 @@ class ResidualModel(eqx.Module):
     def _predict(self, params):
         run = self.simulate(params)
         model = build_model(params, speed=self.speed, track=self.track, options=self.options)
-        return readings_from_states(self.sensors, model, run.ts, run.q, run.qd), run.successful
+        # q_ddot of the run (one evaluation of the equations of motion per sample); the samples
+        # a failed solve did not reach are zeroed (their residuals are +inf in `__call__`)
+        clean = lambda x: jnp.where(jnp.isfinite(x), x, 0.0)
+        readings = sensor_readings(
+            self.sensors, model, run.ts, clean(run.q), clean(run.qd), clean(run.qdd)
+        )
+        return readings, run.successful
 
     def predict(self, params: BogieParams) -> Float[Array, "n c"]:
         """Model channels y_model (n_times, n_channels) at `params` (sensor bias included)."""
