@@ -18,7 +18,7 @@ from ._constants import model_constants, ModelConstants
 from ._lagrangian import frame_rotation_terms, wheelset_terms
 from ._layout import GRAVITY, N_DOF
 from ._smallmath import solve3, solve_spd2
-from ._suspension import deformations, element_forces, N_PRIMARY
+from ._suspension import generalised_forces as suspension_generalised_forces, N_PRIMARY
 from ._wheel_rail import contact_generalised_forces, normal_loads
 
 
@@ -72,12 +72,7 @@ def _to_q_order(per_wheelset):
 
 def _suspension_forces(model: BogieModel, q, qd, w, wd):
     """Generalised suspension forces (10,) and the element forces (8, 3)."""
-    p, const = model.params, model.constants
-    deform = lambda q_, w_: deformations(q_, w_, p, const)
-    delta, delta_rate = jax.jvp(deform, (q, w), (qd, wd))
-    f = element_forces(delta, delta_rate, p, const, model.options)
-    _, pullback = jax.vjp(lambda q_: deform(q_, w), q)
-    return pullback(-f)[0], f
+    return suspension_generalised_forces(q, qd, w, wd, model.params, model.constants, model.options)
 
 
 def _wheelset_forces(model: BogieModel, q, qd, w, wd, wdd, axlebox_forces):

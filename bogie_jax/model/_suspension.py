@@ -19,7 +19,7 @@ from ..params import BogieParams, ModelOptions
 from ._constants import ModelConstants
 from . import _kinematics as kin
 from ._kinematics import axle_positions, frame_points, SIDES
-from ._smallmath import rows_times
+from ._smallmath import matvec, rows_times
 
 
 N_PRIMARY, N_SECONDARY, N_YAW = 4, 2, 2
@@ -46,13 +46,19 @@ def _body_attachments(q, w, params: BogieParams, const: ModelConstants):
     centres = jax.vmap(kin.centre, in_axes=(0, 0, 0, 0, None, None))(y, psi, w, x, params, const)
     rots = jax.vmap(kin.rotation, in_axes=(0, 0, 0, None, None))(y, psi, w, params, const)
     axleboxes = (centres[:, None, :] + jax.vmap(rows_times, in_axes=(None, 0))(local, rots)).reshape(4, 3)
+    return jnp.concatenate([axleboxes, _carbody_attachments(params)])
+
+
+def _carbody_attachments(params: BogieParams):
+    """Car-body points of the secondary springs and anti-yaw dampers (fixed), shape (4, 3)."""
+    g = params.geometry
     body_secondary = jnp.stack(
         [jnp.zeros(2), SIDES * g.secondary_semi_spacing, jnp.full(2, g.secondary_height)], -1
     )
     body_yaw = jnp.stack(
         [jnp.zeros(2), SIDES * g.yaw_damper_semi_spacing, jnp.full(2, g.secondary_height)], -1
     )
-    return jnp.concatenate([axleboxes, body_secondary, body_yaw])
+    return jnp.concatenate([body_secondary, body_yaw])
 
 
 def deformations(q, w, params: BogieParams, const: ModelConstants):
@@ -63,6 +69,62 @@ def deformations(q, w, params: BogieParams, const: ModelConstants):
     """
     r_a = frame_points(q, _frame_attachments(params), params)
     return r_a - _body_attachments(q, w, params, const)
+
+
+def generalised_forces(
+    q, qd, w, wd, params: BogieParams, const: ModelConstants, options: ModelOptions
+):
+    """Generalised suspension forces Q (10,) [N, N m] and the element forces f (8, 3) [N].
+
+    In closed form (docs/model.md, suspension elements; paper eq. 8): with the frame lever
+    l_k = R_f a_k, its angular velocity omega_f = R_f E_b (roll, pitch, yaw)_dot, and an axlebox
+    at c_i + l_b, l_b = +-b_p R_i e_y, moving with omega_i = yaw_dot e_z + roll_dot Rz(yaw) e_x,
+        Delta_dot = cg_dot + omega_f x l_k - (c_i_dot + omega_i x l_b),
+    and Q = -(dDelta/dq)^T f: frame force -sum f, moment tau = -sum l_k x f (Q = E_b^T R_f^T tau),
+    per wheelset with F = sum f and M = sum l_b x f over its axleboxes
+        Q_y = F_y + dz/dy F_z + dphi/dy (Rz e_x) . M,   Q_yaw = dz/dyaw F_z + M_z
+    (the structure of `_wheel_rail.contact_generalised_forces`).
+    """
+    g, geo = params.geometry, const.geometry
+    r0 = params.contact.wheel_radius
+    angles, rates = q[3:6], qd[3:6]
+    rot_f = kin.frame_rotation(angles)
+    body_rates = kin.frame_body_rates_matrix(angles)
+    lever_a = rows_times(_frame_attachments(params), rot_f)  # (8, 3)
+    omega_f = matvec(rot_f, matvec(body_rates, rates))
+    cg = jnp.stack([q[0], q[1], g.frame_cg_height + q[2]])
+    # wheelsets (axis 0): centres, axlebox levers and their rates (paper eq. 2-3)
+    y, psi, y_dot, psi_dot = q[6:8], q[8:10], qd[6:8], qd[8:10]
+    wt, wdt = w.T, wd.T  # (3, 2): alignment, level, cross level per wheelset
+    y_rel = kin.relative_lateral(y, wt, r0)
+    y_rel_dot = kin.relative_lateral(y_dot, wdt, r0)
+    dz_dy = geo.vertical_lateral_coefficient * y_rel
+    dz_dpsi = -geo.vertical_yaw_coefficient * psi
+    z_dot = wdt[1] - r0 * wt[2] * wdt[2] + dz_dy * y_rel_dot + dz_dpsi * psi_dot
+    k_roll = kin.roll_slope(params, const)
+    phi_dot = wdt[2] + k_roll * y_rel_dot
+    x = axle_positions(params)
+    centres = jax.vmap(kin.centre, in_axes=(0, 0, 0, 0, None, None))(y, psi, w, x, params, const)
+    rots = jax.vmap(kin.rotation, in_axes=(0, 0, 0, None, None))(y, psi, w, params, const)
+    lever_b = (SIDES * g.primary_semi_spacing)[None, :, None] * rots[:, None, :, 1]  # (2, 2, 3)
+    roll_axis = jnp.stack([jnp.cos(psi), jnp.sin(psi), jnp.zeros_like(psi)], axis=-1)  # Rz e_x
+    omega_w = phi_dot[:, None] * roll_axis + psi_dot[:, None] * kin.E_Z
+    centre_rate = jnp.stack([jnp.zeros_like(y_dot), y_dot, z_dot], axis=-1)
+    axlebox = (centres[:, None, :] + lever_b).reshape(4, 3)
+    axlebox_rate = (centre_rate[:, None, :] + jnp.cross(omega_w[:, None, :], lever_b)).reshape(4, 3)
+    carbody = _carbody_attachments(params)
+    delta = cg + lever_a - jnp.concatenate([axlebox, carbody])
+    body_rate = jnp.concatenate([axlebox_rate, jnp.zeros_like(carbody)])
+    delta_rate = qd[0:3] + jnp.cross(omega_f, lever_a) - body_rate
+    f = element_forces(delta, delta_rate, params, const, options)
+    torque = -jnp.sum(jnp.cross(lever_a, f), axis=0)
+    frame_rotation_q = matvec(body_rates.T, matvec(rot_f.T, torque))
+    box_f = f[:N_PRIMARY].reshape(2, 2, 3)
+    total = jnp.sum(box_f, axis=1)  # (2, 3)
+    moment = jnp.sum(jnp.cross(lever_b, box_f), axis=1)
+    q_y = total[:, 1] + dz_dy * total[:, 2] + k_roll * jnp.sum(roll_axis * moment, axis=-1)
+    q_psi = dz_dpsi * total[:, 2] + moment[:, 2]
+    return jnp.concatenate([-jnp.sum(f, axis=0), frame_rotation_q, q_y, q_psi]), f
 
 
 def blowoff_damper(rate, c, blowoff_velocity, c_blowoff):
