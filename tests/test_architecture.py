@@ -31,6 +31,7 @@ LAYERS = {
     "batch": 5,  # generic batch runners under the identification layer
     "queued_batch": 5,
     "gradients": 6,
+    "gradcheck": 6,
     "identify": 6,
     "sensitivity": 6,
     "monitor": 7,

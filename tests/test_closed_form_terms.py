@@ -11,14 +11,15 @@ import pytest
 
 import bogie_jax as bj
 from bogie_jax.contact import linear_creep_forces, shen_hedrick_elkins
-from bogie_jax.model import _kinematics as kin
-from bogie_jax.model._constants import model_constants
-from bogie_jax.model._lagrangian import frame_rotation_terms, wheelset_terms
-from bogie_jax.model._wheel_rail import (
+from bogie_jax.model import (
     contact_generalised_forces,
     contact_velocities,
     creepages,
+    frame_rotation_terms,
+    kinematics as kin,
+    model_constants,
     scaled_creep_coefficients,
+    wheelset_terms,
 )
 from bogie_jax.params import ModelOptions
 

@@ -7,7 +7,7 @@ import numpy as np
 import optimistix as optx
 import pytest
 
-from bogie_jax.identify._householder import HouseholderQR
+from bogie_jax.identify import HouseholderQR
 
 
 @pytest.mark.parametrize("shape", [(7, 3), (200, 6), (40, 40)])

@@ -111,7 +111,7 @@ def test_new_parameter_values_do_not_retrace(tracks):
 
 
 def test_float32_is_explained():
-    from bogie_jax._precision import warn_if_float32
+    from bogie_jax.simulate import warn_if_float32
 
     with jax.enable_x64(False):
         with pytest.warns(UserWarning, match="jax_enable_x64"):

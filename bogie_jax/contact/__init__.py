@@ -14,6 +14,8 @@ from ._hertz import (
     hertz_contact as hertz_contact,
 )
 from ._kalker import (
+    KALKER_TABLE_A_OVER_B as KALKER_TABLE_A_OVER_B,
+    KALKER_TABLE_E3 as KALKER_TABLE_E3,
     CreepCoefficients as CreepCoefficients,
     creep_coefficients as creep_coefficients,
     kalker_coefficients as kalker_coefficients,

@@ -22,6 +22,7 @@ from ._chunked import (
     ChunkProgress as ChunkProgress,
     fit_multistart_chunked as fit_multistart_chunked,
 )
+from ._householder import HouseholderQR as HouseholderQR
 from ._iteration import queue_lanes as queue_lanes, supports_queue as supports_queue
 from ._jacobian import JacobianResiduals as JacobianResiduals
 from ._local import (

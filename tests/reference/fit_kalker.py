@@ -10,7 +10,7 @@ Run: `python tests/reference/fit_kalker.py`
 
 import numpy as np
 
-from bogie_jax.contact._kalker import KALKER_TABLE_A_OVER_B, KALKER_TABLE_E3
+from bogie_jax.contact import KALKER_TABLE_A_OVER_B, KALKER_TABLE_E3
 
 
 TOLERANCE = 0.005
