@@ -56,7 +56,11 @@ def controller(rtol=RTOL, atol=ATOL):
 def jax_single(params, track):
     run = jax.jit(
         lambda p: simulate(
-            p, track, speed=SPEED, duration=DURATION, sample_rate=RATE,
+            p,
+            track,
+            speed=SPEED,
+            duration=DURATION,
+            sample_rate=RATE,
             stepsize_controller=controller(),
         )
     )
@@ -70,8 +74,14 @@ def jax_single(params, track):
 def reference(params, track):
     run = jax.jit(
         lambda p: simulate(
-            p, track, speed=SPEED, duration=DURATION, sample_rate=RATE, solver=dfx.Tsit5(),
-            stepsize_controller=controller(1e-10, 1e-13), max_steps=2_000_000,
+            p,
+            track,
+            speed=SPEED,
+            duration=DURATION,
+            sample_rate=RATE,
+            solver=dfx.Tsit5(),
+            stepsize_controller=controller(1e-10, 1e-13),
+            max_steps=2_000_000,
         )
     )
     return jax.block_until_ready(run(params))
@@ -87,8 +97,13 @@ def scipy_runs(params, track, ts):
 
         def solve():
             holder["sol"] = solve_ivp(
-                twin.rhs, (0.0, DURATION), np.zeros(20), method=method, t_eval=np.asarray(ts),
-                rtol=RTOL, atol=ATOL,
+                twin.rhs,
+                (0.0, DURATION),
+                np.zeros(20),
+                method=method,
+                t_eval=np.asarray(ts),
+                rtol=RTOL,
+                atol=ATOL,
             )
 
         median, _ = median_time(solve, repeats=5)
@@ -113,8 +128,13 @@ def batch_benchmark(params, track):
         ky, c = member
         p = eqx.tree_at(lambda p: (p.primary.ky, p.yaw_dampers.c), params, (ky, c))
         traj = simulate(
-            p, track, speed=SPEED, duration=DURATION, sample_rate=RATE,
-            stepsize_controller=controller(), throw=False,
+            p,
+            track,
+            speed=SPEED,
+            duration=DURATION,
+            sample_rate=RATE,
+            stepsize_controller=controller(),
+            throw=False,
         )
         return traj.q[:, 6], traj.successful
 
@@ -128,7 +148,10 @@ def batch_benchmark(params, track):
 
     loop_time, _ = median_time(loop, repeats=3)
     rows = {"loop": loop_time}
-    for label, devices in (("vmap, 1 device", jax.devices()[:1]), ("sharded, 2 devices", jax.devices()[:2])):
+    for label, devices in (
+        ("vmap, 1 device", jax.devices()[:1]),
+        ("sharded, 2 devices", jax.devices()[:2]),
+    ):
         run = batch_runner(one, devices=devices, failure_fn=lambda out: ~out[1])
         t0 = time.perf_counter()
         jax.block_until_ready(run(members).outputs)
@@ -141,29 +164,38 @@ def batch_benchmark(params, track):
 
 def main():
     params = bj.manchester_benchmark()
-    track = synthesise_track(ERRIB176Spectrum.low(), key=jr.PRNGKey(0), length=SPEED * DURATION + 100)
+    track = synthesise_track(
+        ERRIB176Spectrum.low(), key=jr.PRNGKey(0), length=SPEED * DURATION + 100
+    )
     out, jax_time, jax_compile = jax_single(params, track)
     ref = reference(params, track)
     scipy_out = scipy_runs(params, track, out.ts)
     records = [
         {
-            "method": "JAX Tsit5 (diffrax)", "time_s": jax_time, "compile_s": jax_compile,
-            "steps": int(out.num_steps), "rhs_evals": 6 * int(out.num_steps),
+            "method": "JAX Tsit5 (diffrax)",
+            "time_s": jax_time,
+            "compile_s": jax_compile,
+            "steps": int(out.num_steps),
+            "rhs_evals": 6 * int(out.num_steps),
             "rel_error": rel_error(out.q, ref.q),
         }
     ]
     for method, (sol, t) in scipy_out.items():
         records.append(
             {
-                "method": f"scipy {method} (numpy twin)", "time_s": t, "compile_s": 0.0,
-                "steps": None, "rhs_evals": int(sol.nfev),
+                "method": f"scipy {method} (numpy twin)",
+                "time_s": t,
+                "compile_s": 0.0,
+                "steps": None,
+                "rhs_evals": int(sol.nfev),
                 "rel_error": rel_error(sol.y[:10].T, ref.q),
             }
         )
     fastest_scipy = min(t for _, t in scipy_out.values())
     batch = batch_benchmark(params, track)
     lines = [
-        f"## Forward solve: {DURATION:g} s at {SPEED:g} m/s, {RATE:g} Hz, rtol {RTOL:g}, atol {ATOL:g}",
+        f"## Forward solve: {DURATION:g} s at {SPEED:g} m/s, {RATE:g} Hz, "
+        f"rtol {RTOL:g}, atol {ATOL:g}",
         "",
         "| method | median time [s] | compile [s] | steps | RHS evals | rel. error vs rtol 1e-10 |",
         "| --- | --- | --- | --- | --- | --- |",
@@ -189,7 +221,9 @@ def main():
             f"{batch['loop'] / batch[label]:.2f} |"
         )
     write_outputs(
-        "forward", records, "\n".join(lines) + "\n",
+        "forward",
+        records,
+        "\n".join(lines) + "\n",
         extra={"batch": batch, "speedup_vs_fastest_scipy": fastest_scipy / jax_time},
     )
 

@@ -168,12 +168,18 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=str(RESULTS))
-    p.add_argument("--cache", default=None,
-                   help="persistent compilation cache directory (default: a new temporary one; "
-                   "with a used one, re-runs skip compiling and compile times are cache-load times)")
-    p.add_argument("--update", action="store_true",
-                   help="re-measure only the given --ns/--methods and replace those records in "
-                   "the existing gradients.json (the rest is kept)")
+    p.add_argument(
+        "--cache",
+        default=None,
+        help="persistent compilation cache directory (default: a new temporary one; "
+        "with a used one, re-runs skip compiling and compile times are cache-load times)",
+    )
+    p.add_argument(
+        "--update",
+        action="store_true",
+        help="re-measure only the given --ns/--methods and replace those records in "
+        "the existing gradients.json (the rest is kept)",
+    )
     args = p.parse_args(argv)
     cache = args.cache or tempfile.mkdtemp(prefix="bogie_jax_gradients_cache_")
     jax.config.update("jax_compilation_cache_dir", cache)
@@ -288,7 +294,8 @@ def _markdown(records, meta) -> str:
         "",
         "Runs (each record keeps its run's settings in the JSON): "
         + "; ".join(
-            f"commit {m['commit']}: {', '.join(sorted({r['method'] for r in records if r['meta'] == m}))}"
+            f"commit {m['commit']}: "
+            f"{', '.join(sorted({r['method'] for r in records if r['meta'] == m}))}"
             f" ({m['total_s']:.0f} s)"
             for m in _distinct(r["meta"] for r in records)
         ),

@@ -1,4 +1,5 @@
-# long: one driver for every method, scenario and table of the identification study; its parts share the run records.
+# long: one driver for every method, scenario and table of the identification study;
+# its parts share the run records.
 """Identification benchmark (issue 4, item 7).
 
 Scenarios with 3, 6 and 10 selected parameters (`primary3`, `primary6`, `all10` of

@@ -6,35 +6,36 @@ command line (`bogie_jax.cli.main`) must set `XLA_FLAGS` before JAX is imported.
 
 import importlib
 import importlib.metadata
-from typing import TYPE_CHECKING
 
 
-if TYPE_CHECKING:
-    from .cost import (
-        Objective as Objective,
-        ParameterSelection as ParameterSelection,
-        make_objective as make_objective,
-        select_parameters as select_parameters,
-    )
-    from .gradients import gradient as gradient, scalar_product_test as scalar_product_test
-    from .measure import (
-        Measurement as Measurement,
-        default_sensor_layout as default_sensor_layout,
-        synthetic_measurement as synthetic_measurement,
-    )
-    from .params import (
-        BogieParams as BogieParams,
-        ModelOptions as ModelOptions,
-        ParameterError as ParameterError,
-        crh380a as crh380a,
-        manchester_benchmark as manchester_benchmark,
-    )
-
-_EXPORTS = {
+_EXPORTS = {  # what a notebook needs, by module
+    "params": (
+        "BogieParams",
+        "ModelOptions",
+        "ParameterError",
+        "crh380a",
+        "element_names",
+        "get_parameter",
+        "manchester_benchmark",
+        "parameter_names",
+        "set_parameters",
+    ),
+    "track": ("TrackReference", "perfect_track", "synthesise_track"),
+    "model": ("critical_speed", "stability_sweep", "static_equilibrium"),
+    "simulate": ("SolveSettings", "Trajectory", "simulate"),
+    "measure": ("Measurement", "default_sensor_layout", "synthetic_measurement"),
     "cost": ("Objective", "ParameterSelection", "make_objective", "select_parameters"),
     "gradients": ("gradient", "scalar_product_test"),
-    "measure": ("Measurement", "default_sensor_layout", "synthetic_measurement"),
-    "params": ("BogieParams", "ModelOptions", "ParameterError", "crh380a", "manchester_benchmark"),
+    "identify": (
+        "fit",
+        "fit_hybrid",
+        "fit_multistart",
+        "fit_multistart_chunked",
+        "scenario_problem",
+        "simulated_annealing",
+    ),
+    "sensitivity": ("fisher_information", "profile_likelihood", "sensitivity_sobol"),
+    "monitor": ("ToleranceBand", "judge", "trend"),
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_WHERE)

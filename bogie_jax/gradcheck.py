@@ -58,7 +58,9 @@ def _core_memory(objective, theta, adjoint, mode) -> int:
     objective = objective.with_adjoint(adjoint)
     if mode == "fwd":
         return _peak_bytes(compiled_jacobian, objective, theta)
-    return _peak_bytes(residuals_and_pullback, objective, theta, jnp.zeros(objective.n_residuals), 1.0)
+    return _peak_bytes(
+        residuals_and_pullback, objective, theta, jnp.zeros(objective.n_residuals), 1.0
+    )
 
 
 def gradient_report(

@@ -14,7 +14,9 @@ import pytest
 
 jax.config.update("jax_enable_x64", True)
 # Identical programs compiled by different tests (CLI, notebooks, library calls) are compiled once.
-jax.config.update("jax_compilation_cache_dir", os.path.join(os.path.dirname(__file__), "..", ".jax_cache"))
+jax.config.update(
+    "jax_compilation_cache_dir", os.path.join(os.path.dirname(__file__), "..", ".jax_cache")
+)
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 

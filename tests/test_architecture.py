@@ -80,7 +80,9 @@ def _package_files():
 
 def test_every_top_level_module_has_a_layer():
     tops = {_top(_module_name(p)) for p in _package_files()}
-    assert not tops - set(LAYERS), f"modules without a layer in LAYERS: {sorted(tops - set(LAYERS))}"
+    assert not tops - set(LAYERS), (
+        f"modules without a layer in LAYERS: {sorted(tops - set(LAYERS))}"
+    )
 
 
 def test_imports_follow_the_layer_order():
@@ -149,10 +151,29 @@ def test_tests_and_benchmarks_use_only_public_names(folder):
 
 def test_no_file_over_400_lines_without_a_reason():
     """A longer file says why in a comment among its first lines (`# long: ...`)."""
-    files = [*_package_files(), *(ROOT / "tests").rglob("*.py"), *(ROOT / "benchmarks").glob("*.py")]
+    files = [
+        *_package_files(),
+        *(ROOT / "tests").rglob("*.py"),
+        *(ROOT / "benchmarks").glob("*.py"),
+    ]
     long = []
     for path in files:
         lines = path.read_text().splitlines()
         if len(lines) > MAX_LINES and not any(line.startswith("# long:") for line in lines[:15]):
             long.append(f"{path.relative_to(ROOT)} ({len(lines)} lines)")
     assert not long, f"files over {MAX_LINES} lines without a '# long:' reason:\n" + "\n".join(long)
+
+
+def test_top_level_re_exports_resolve_and_import_no_jax():
+    """`bogie_jax` offers what a notebook needs, and importing it loads no JAX (the command
+    line sets up devices first)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, bogie_jax as bj; assert 'jax' not in sys.modules; "
+        "[getattr(bj, n) for n in bj.__all__]; print(sorted(bj.__all__))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    names = set(eval(out.stdout))
+    assert {"simulate", "fit", "fit_multistart", "make_objective", "judge", "trend"} <= names

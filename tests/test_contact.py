@@ -1,4 +1,5 @@
-# long: the contact package's oracles (geometry, Hertz tables, Kalker tables, creep saturation) kept in one file.
+# long: the contact package's oracles (geometry, Hertz tables, Kalker tables, creep
+# saturation) kept in one file.
 """Tests of `bogie_jax.contact` against independent oracles.
 
 Oracles: the printed tables of the physics reference doc (sections 1.2, 2.2, 2.4, 3.2), scipy's

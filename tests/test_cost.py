@@ -104,8 +104,11 @@ def test_element_selection_reads_and_sets_one_element(nominal):
     p2 = sel2.apply(nominal, jnp.array([np.log(0.5), 0.0]))
     np.testing.assert_allclose(p2.yaw_dampers.c, [200e3, 400e3], rtol=1e-14)
     # a tied name on an asymmetric base has no single nominal value
-    with pytest.raises(ValueError, match=r"`yaw_dampers.c` has no single value: its elements "
-                       r"differ \(yaw_dampers.left.c = 200000, yaw_dampers.right.c = 400000"):
+    with pytest.raises(
+        ValueError,
+        match=r"`yaw_dampers.c` has no single value: its elements "
+        r"differ \(yaw_dampers.left.c = 200000, yaw_dampers.right.c = 400000",
+    ):
         select_parameters(p2, ["yaw_dampers.c"])
     np.testing.assert_allclose(
         select_parameters(p2, ["yaw_dampers.left.c"]).nominal, [200e3], rtol=1e-15
@@ -115,14 +118,25 @@ def test_element_selection_reads_and_sets_one_element(nominal):
 @pytest.mark.parametrize(
     "names, match",
     [
-        (["primary.3L.kz"], r"unknown element '3L' in parameter 'primary.3L.kz' in `names`: the "
-         r"elements of `primary` are 1L, 1R, 2L, 2R"),
-        (["yaw_dampers.middle.c"], r"unknown element 'middle' in parameter "
-         r"'yaw_dampers.middle.c' in `names`: the elements of `yaw_dampers` are left, right"),
-        (["primary.kz", "primary.1L.kz"], r"`names` mixes the tied group `primary.kz` \(all its "
-         r"elements, one value\) with its member\(s\) `primary.1L.kz`"),
-        (["secondary.right.cy", "yaw_dampers.c", "secondary.cy", "secondary.left.cy"],
-         r"mixes the tied group `secondary.cy` .* `secondary.right.cy`, `secondary.left.cy`"),
+        (
+            ["primary.3L.kz"],
+            r"unknown element '3L' in parameter 'primary.3L.kz' in `names`: the "
+            r"elements of `primary` are 1L, 1R, 2L, 2R",
+        ),
+        (
+            ["yaw_dampers.middle.c"],
+            r"unknown element 'middle' in parameter "
+            r"'yaw_dampers.middle.c' in `names`: the elements of `yaw_dampers` are left, right",
+        ),
+        (
+            ["primary.kz", "primary.1L.kz"],
+            r"`names` mixes the tied group `primary.kz` \(all its "
+            r"elements, one value\) with its member\(s\) `primary.1L.kz`",
+        ),
+        (
+            ["secondary.right.cy", "yaw_dampers.c", "secondary.cy", "secondary.left.cy"],
+            r"mixes the tied group `secondary.cy` .* `secondary.right.cy`, `secondary.left.cy`",
+        ),
         (["primary.1L.kz", "primary.1L.kz"], "repeated: primary.1L.kz"),
     ],
 )

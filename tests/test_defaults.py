@@ -135,7 +135,9 @@ def test_fit_of_an_objective_made_with_default_arguments_converges(measured, nom
     result = fit(objective)  # default LM: switches to forward mode itself
     assert result.success and result.status == optx.RESULTS.successful
     error = abs(float(result.estimates[0]) - float(get_parameter(truth, "primary.kz")))
-    assert result.rank == 1 and 0 < float(result.std_errors[0]) < 0.01 * float(get_parameter(truth, "primary.kz"))
+    assert result.rank == 1 and 0 < float(result.std_errors[0]) < 0.01 * float(
+        get_parameter(truth, "primary.kz")
+    )
     assert error < 3 * float(result.std_errors[0])  # measured: 1.2 standard errors
     assert isinstance(objective.settings.adjoint, dfx.RecursiveCheckpointAdjoint)  # untouched
 

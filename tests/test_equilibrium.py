@@ -90,8 +90,10 @@ def test_asymmetric_rest_state_matches_the_twin(asymmetric, q0, residual):
     assert np.abs(twin.qddot(0.0, q0, np.zeros(10))).max() < 1e-8
     assert np.all(np.abs(q0[2:5]) > 1e-5), q0  # heave [m], roll and pitch [rad]
     loads = [c["normal_load"] for c in twin.creep_details(0.0, np.concatenate([q0, np.zeros(10)]))]
-    nominal = [c["normal_load"] for c in BogieTwin(bj.manchester_benchmark(), 50.0).creep_details(
-        0.0, np.zeros(20))]
+    nominal = [
+        c["normal_load"]
+        for c in BogieTwin(bj.manchester_benchmark(), 50.0).creep_details(0.0, np.zeros(20))
+    ]
     assert np.abs(np.asarray(loads) / nominal - 1).max() > 1e-2, loads
 
 
@@ -101,8 +103,11 @@ def test_rest_state_jacobian_is_non_singular(residual, asymmetric, q0):
     springs, the gravitational stiffness and creep)."""
     h = 1e-7
     cols = [
-        (np.asarray(residual(asymmetric, jnp.asarray(q0 + h * e)))
-         - np.asarray(residual(asymmetric, jnp.asarray(q0 - h * e)))) / (2 * h)
+        (
+            np.asarray(residual(asymmetric, jnp.asarray(q0 + h * e)))
+            - np.asarray(residual(asymmetric, jnp.asarray(q0 - h * e)))
+        )
+        / (2 * h)
         for e in np.eye(10)
     ]
     sv = np.linalg.svd(np.stack(cols, axis=1), compute_uv=False)
@@ -137,10 +142,16 @@ def test_simulation_from_rest_stays_at_rest(asymmetric, q0):
     """`simulate`'s default initial state is (q0, 0): 1 s on a perfect track at 50 m/s stays
     within 1e-9 of q0 (m, rad)."""
     run = jax.jit(
-        lambda p: simulate(
-            p, perfect_track(), speed=50.0, duration=1.0, sample_rate=100.0,
-            stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-11),
-        ).q
+        lambda p: (
+            simulate(
+                p,
+                perfect_track(),
+                speed=50.0,
+                duration=1.0,
+                sample_rate=100.0,
+                stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-11),
+            ).q
+        )
     )(asymmetric)
     drift = np.abs(np.asarray(run) - q0).max()
     print(f"drift from rest over 1 s: {drift:.2e}")

@@ -256,9 +256,23 @@ def test_gradcheck_cli_rejects_bad_input(argv, message, capsys, tmp_path, monkey
 
 def test_gradcheck_cli_writes_records(tmp_path, capsys):
     out = tmp_path / "g.json"
-    argv = ["gradcheck", "--params", "primary.kz,yaw_dampers.c", "--methods", "forward,fd-central",
-            "--duration", "0.1", "--sample-rate", "50", "--repeats", "1", "--json", str(out),
-            "--plot", str(tmp_path / "g.png")]
+    argv = [
+        "gradcheck",
+        "--params",
+        "primary.kz,yaw_dampers.c",
+        "--methods",
+        "forward,fd-central",
+        "--duration",
+        "0.1",
+        "--sample-rate",
+        "50",
+        "--repeats",
+        "1",
+        "--json",
+        str(out),
+        "--plot",
+        str(tmp_path / "g.png"),
+    ]
     assert main(argv) == 0
     records = json.loads(out.read_text())
     assert [r["method"] for r in records] == ["forward-solve", "forward", "fd-central"]

@@ -10,6 +10,7 @@ import pytest
 import bogie_jax as bj
 from bogie_jax.contact import cone_geometry
 from bogie_jax.model import (
+    GRAVITY,
     build_model,
     critical_speed,
     eigenvalues,
@@ -17,7 +18,6 @@ from bogie_jax.model import (
     model_constants,
     system_matrix,
 )
-from bogie_jax.model import GRAVITY
 from bogie_jax.simulate import simulate
 from bogie_jax.track import perfect_track
 
@@ -39,7 +39,12 @@ def eig_fn():
 def simulate_fn():
     def run(params, speed, y0, duration):
         return simulate(
-            params, perfect_track(), speed=speed, duration=duration, sample_rate=100.0, y0=y0,
+            params,
+            perfect_track(),
+            speed=speed,
+            duration=duration,
+            sample_rate=100.0,
+            y0=y0,
             stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-11),
         )
 
@@ -48,7 +53,9 @@ def simulate_fn():
 
 def _free_wheelsets(params):
     """No lateral/longitudinal primary coupling: the wheelsets are free in lateral and yaw."""
-    return _set(params, **{"primary.kx": 0.0, "primary.ky": 0.0, "primary.cx": 0.0, "primary.cy": 0.0})
+    return _set(
+        params, **{"primary.kx": 0.0, "primary.ky": 0.0, "primary.cx": 0.0, "primary.cy": 0.0}
+    )
 
 
 def _lowest_oscillation_hz(eig):
@@ -100,7 +107,11 @@ def test_free_wheelset_kinematic_wavelength(eig_fn):
     c = p.contact
     geo = cone_geometry(c.wheel_radius, c.contact_semi_distance, c.cone_slope, c.rail_head_radius)
     r0, e0 = float(c.wheel_radius), float(c.contact_semi_distance)
-    expected = 2 * np.pi * np.sqrt(r0 * e0 * (1 + r0 * float(geo.roll_coefficient) / e0) / float(geo.conicity))
+    expected = (
+        2
+        * np.pi
+        * np.sqrt(r0 * e0 * (1 + r0 * float(geo.roll_coefficient) / e0) / float(geo.conicity))
+    )
     wavelength = speed / _lowest_oscillation_hz(eig_fn(p, speed))
     assert abs(wavelength / expected - 1) < 0.02
 

@@ -50,9 +50,15 @@ def _primary(**override):
 @pytest.mark.parametrize(
     "override, pattern",
     [
-        ({"kz": -1.0}, r"`PrimarySuspension.kz` = -1.0 N/m is outside its valid range \[0, 1e\+10\] N/m"),
+        (
+            {"kz": -1.0},
+            r"`PrimarySuspension.kz` = -1.0 N/m is outside its valid range \[0, 1e\+10\] N/m",
+        ),
         ({"cy": math.nan}, r"`PrimarySuspension.cy` = nan N s/m is outside its valid range"),
-        ({"kx": np.ones(2)}, r"`PrimarySuspension.kx` must be a scalar \[N/m\], got an array of shape \(2,\)"),
+        (
+            {"kx": np.ones(2)},
+            r"`PrimarySuspension.kx` must be a scalar \[N/m\], got an array of shape \(2,\)",
+        ),
     ],
 )
 def test_invalid_values_name_field_value_and_range(override, pattern):
@@ -61,7 +67,10 @@ def test_invalid_values_name_field_value_and_range(override, pattern):
 
 
 def test_non_positive_mass_is_rejected():
-    with pytest.raises(ParameterError, match=r"`BodyInertia.mass` = 0.0 kg is outside its valid range \[1, 1e\+06\] kg"):
+    with pytest.raises(
+        ParameterError,
+        match=r"`BodyInertia.mass` = 0.0 kg is outside its valid range \[1, 1e\+06\] kg",
+    ):
         BodyInertia(mass=0.0, ixx=1.0, iyy=1.0, izz=1.0)
 
 
@@ -91,10 +100,15 @@ def test_per_element_fields_broadcast_scalars_and_keep_arrays():
 @pytest.mark.parametrize(
     "override, pattern",
     [
-        ({"kz": [1e6, 1e6, -1.0, 1e6]},
-         r"`PrimarySuspension.kz` = -1.0 N/m at element 2L is outside its valid range"),
-        ({"kx": np.ones(3)}, r"must be a scalar \[N/m\], got an array of shape \(3,\) "
-         r"\(or one value per element 1L, 1R, 2L, 2R: shape \(4,\)\)"),
+        (
+            {"kz": [1e6, 1e6, -1.0, 1e6]},
+            r"`PrimarySuspension.kz` = -1.0 N/m at element 2L is outside its valid range",
+        ),
+        (
+            {"kx": np.ones(3)},
+            r"must be a scalar \[N/m\], got an array of shape \(3,\) "
+            r"\(or one value per element 1L, 1R, 2L, 2R: shape \(4,\)\)",
+        ),
     ],
 )
 def test_invalid_element_values_name_the_element(override, pattern):
@@ -110,10 +124,17 @@ def test_tied_and_element_names():
     assert len(tied) == 39 and len(elements) == 6 * 4 + 5 * 2 + 3 * 2
     assert set(both) == set(tied) | set(elements) and len(both) == len(tied) + len(elements)
     assert both[both.index("primary.kz") + 1 : both.index("primary.kz") + 5] == (
-        "primary.1L.kz", "primary.1R.kz", "primary.2L.kz", "primary.2R.kz"
+        "primary.1L.kz",
+        "primary.1R.kz",
+        "primary.2L.kz",
+        "primary.2R.kz",
     )
-    for name in ("secondary.left.cy", "secondary.right.kz", "yaw_dampers.right.c",
-                 "yaw_dampers.left.blowoff_velocity"):
+    for name in (
+        "secondary.left.cy",
+        "secondary.right.kz",
+        "yaw_dampers.right.c",
+        "yaw_dampers.left.blowoff_velocity",
+    ):
         assert name in elements
     specs = parameter_specs(params, elements=True)
     assert specs["primary.2R.cz"] is specs["primary.cz"]
@@ -121,8 +142,9 @@ def test_tied_and_element_names():
 
 def test_get_and_set_by_element_and_tied_name():
     params = bj.manchester_benchmark()
-    p = set_parameters(params, {"primary.1L.kz": 1.5e6, "yaw_dampers.left.c": 0.0,
-                                "secondary.cy": 40e3})
+    p = set_parameters(
+        params, {"primary.1L.kz": 1.5e6, "yaw_dampers.left.c": 0.0, "secondary.cy": 40e3}
+    )
     assert np.asarray(p.primary.kz).tolist() == [1.5e6, 1.22e6, 1.22e6, 1.22e6]
     assert np.asarray(p.yaw_dampers.c).tolist() == [0.0, 400e3]
     assert np.asarray(p.secondary.cy).tolist() == [40e3, 40e3]
@@ -130,8 +152,11 @@ def test_get_and_set_by_element_and_tied_name():
     assert float(get_parameter(p, "primary.2R.kz")) == 1.22e6
     assert float(get_parameter(p, "secondary.cy")) == 40e3
     assert float(get_parameter(p, "masses.frame.mass")) == 2615.0
-    with pytest.raises(ValueError, match=r"`primary.kz` has no single value: its elements differ "
-                       r"\(primary.1L.kz = 1.5e\+06, primary.1R.kz = 1.22e\+06"):
+    with pytest.raises(
+        ValueError,
+        match=r"`primary.kz` has no single value: its elements differ "
+        r"\(primary.1L.kz = 1.5e\+06, primary.1R.kz = 1.22e\+06",
+    ):
         get_parameter(p, "primary.kz")
     # traced: the mean, exactly the common value for equal elements; differentiable
     assert float(jax.jit(lambda q: get_parameter(q, "primary.kz"))(params)) == 1.22e6
@@ -142,13 +167,22 @@ def test_get_and_set_by_element_and_tied_name():
 @pytest.mark.parametrize(
     "name, pattern",
     [
-        ("primary.3L.kz", r"unknown element '3L' in parameter 'primary.3L.kz': the elements of "
-         r"`primary` are 1L, 1R, 2L, 2R"),
-        ("yaw_dampers.middle.c", r"unknown element 'middle' in parameter 'yaw_dampers.middle.c': "
-         r"the elements of `yaw_dampers` are left, right"),
+        (
+            "primary.3L.kz",
+            r"unknown element '3L' in parameter 'primary.3L.kz': the elements of "
+            r"`primary` are 1L, 1R, 2L, 2R",
+        ),
+        (
+            "yaw_dampers.middle.c",
+            r"unknown element 'middle' in parameter 'yaw_dampers.middle.c': "
+            r"the elements of `yaw_dampers` are left, right",
+        ),
         ("secondary.1L.cy", r"the elements of `secondary` are left, right"),
-        ("primary.kzz", r"unknown parameter 'primary.kzz' \(did you mean .*\); valid names: "
-         r"masses.frame.mass, .*primary.1L.kx"),
+        (
+            "primary.kzz",
+            r"unknown parameter 'primary.kzz' \(did you mean .*\); valid names: "
+            r"masses.frame.mass, .*primary.1L.kx",
+        ),
         ("masses.frame.1L.mass", r"unknown parameter 'masses.frame.1L.mass'"),
     ],
 )

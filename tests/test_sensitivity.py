@@ -34,11 +34,7 @@ ST_EXACT = np.array([0.557589, 0.442411, 0.243684])
 
 
 def ishigami(x):
-    return (
-        jnp.sin(x[0])
-        + A_ISHIGAMI * jnp.sin(x[1]) ** 2
-        + B_ISHIGAMI * x[2] ** 4 * jnp.sin(x[0])
-    )
+    return jnp.sin(x[0]) + A_ISHIGAMI * jnp.sin(x[1]) ** 2 + B_ISHIGAMI * x[2] ** 4 * jnp.sin(x[0])
 
 
 def ishigami_np(x):
@@ -176,8 +172,14 @@ def test_failed_evaluations_are_reported(getkey):
 def test_screening_sweeps_equal_direct_evaluation():
     nominal = np.array([0.5, -1.0, 2.0])
     sweeps = screening_sweeps(
-        ishigami, nominal, LOWER, UPPER, n_points=7, params=("x3", "x1"),
-        names=("x1", "x2", "x3"), chunk_size=4,
+        ishigami,
+        nominal,
+        LOWER,
+        UPPER,
+        n_points=7,
+        params=("x3", "x1"),
+        names=("x1", "x2", "x3"),
+        chunk_size=4,
     )
     assert sweeps.names == ("x3", "x1")
     assert sweeps.outputs.shape == (2, 7) and not np.any(sweeps.failed)
@@ -213,27 +215,81 @@ NAMES = ("kx", "ky", "kz")
 @pytest.mark.parametrize(
     "call, match",
     [
-        (lambda: sobol_analysis(must_not_be_called, BAD_LOWER, UPPER1, n=64, key=jr.PRNGKey(0)),
-         "lower < upper"),
-        (lambda: sobol_analysis(must_not_be_called, -UPPER1, UPPER1, n=1000, key=jr.PRNGKey(0)),
-         "power of two"),
-        (lambda: sobol_analysis(must_not_be_called, [0.0, 1.0], [0.0, 2.0], n=64,
-                                key=jr.PRNGKey(0), names=("a", "b")), "bounds of `a`"),
-        (lambda: sobol_analysis(must_not_be_called, -UPPER1, UPPER1, n=64, key=jr.PRNGKey(0),
-                                names=("a", "b")), "names"),
-        (lambda: screening_sweeps(must_not_be_called, NOMINAL, BAD_LOWER, UPPER1, n_points=5),
-         "lower < upper"),
-        (lambda: screening_sweeps(must_not_be_called, NOMINAL, -UPPER1, UPPER1, n_points=5,
-                                  params=("kq",), names=NAMES), "unknown parameter `kq`"),
-        (lambda: screening_sweeps(must_not_be_called, 2 * UPPER1, -UPPER1, UPPER1, n_points=5),
-         "outside its bounds"),
-        (lambda: screening_grid(must_not_be_called, NOMINAL, -UPPER1, UPPER1,
-                                params=("kx", "kw"), n_points=5, names=NAMES),
-         "unknown parameter `kw`"),
-        (lambda: screening_grid(must_not_be_called, NOMINAL, -UPPER1, UPPER1,
-                                params=("kx",), n_points=5, names=NAMES), "exactly two"),
-        (lambda: screening_grid(must_not_be_called, NOMINAL, BAD_LOWER, UPPER1,
-                                params=(0, 1), n_points=5), "lower < upper"),
+        (
+            lambda: sobol_analysis(must_not_be_called, BAD_LOWER, UPPER1, n=64, key=jr.PRNGKey(0)),
+            "lower < upper",
+        ),
+        (
+            lambda: sobol_analysis(must_not_be_called, -UPPER1, UPPER1, n=1000, key=jr.PRNGKey(0)),
+            "power of two",
+        ),
+        (
+            lambda: sobol_analysis(
+                must_not_be_called,
+                [0.0, 1.0],
+                [0.0, 2.0],
+                n=64,
+                key=jr.PRNGKey(0),
+                names=("a", "b"),
+            ),
+            "bounds of `a`",
+        ),
+        (
+            lambda: sobol_analysis(
+                must_not_be_called, -UPPER1, UPPER1, n=64, key=jr.PRNGKey(0), names=("a", "b")
+            ),
+            "names",
+        ),
+        (
+            lambda: screening_sweeps(must_not_be_called, NOMINAL, BAD_LOWER, UPPER1, n_points=5),
+            "lower < upper",
+        ),
+        (
+            lambda: screening_sweeps(
+                must_not_be_called,
+                NOMINAL,
+                -UPPER1,
+                UPPER1,
+                n_points=5,
+                params=("kq",),
+                names=NAMES,
+            ),
+            "unknown parameter `kq`",
+        ),
+        (
+            lambda: screening_sweeps(must_not_be_called, 2 * UPPER1, -UPPER1, UPPER1, n_points=5),
+            "outside its bounds",
+        ),
+        (
+            lambda: screening_grid(
+                must_not_be_called,
+                NOMINAL,
+                -UPPER1,
+                UPPER1,
+                params=("kx", "kw"),
+                n_points=5,
+                names=NAMES,
+            ),
+            "unknown parameter `kw`",
+        ),
+        (
+            lambda: screening_grid(
+                must_not_be_called,
+                NOMINAL,
+                -UPPER1,
+                UPPER1,
+                params=("kx",),
+                n_points=5,
+                names=NAMES,
+            ),
+            "exactly two",
+        ),
+        (
+            lambda: screening_grid(
+                must_not_be_called, NOMINAL, BAD_LOWER, UPPER1, params=(0, 1), n_points=5
+            ),
+            "lower < upper",
+        ),
         (lambda: saltelli_sample(-UPPER1, UPPER1, 3, key=None), "power of two"),
     ],
 )
@@ -314,17 +370,31 @@ LOG_SELECTION = eqx.tree_at(
 @pytest.mark.parametrize(
     "call, match",
     [
-        (lambda o: sensitivity_sweeps(o, n_points=3, params=("primary.kq",)),
-         "unknown parameter `primary.kq`"),
-        (lambda o: sensitivity_grid(o, params=("primary.kx", "kz"), n_points=3),
-         "unknown parameter `kz`"),
+        (
+            lambda o: sensitivity_sweeps(o, n_points=3, params=("primary.kq",)),
+            "unknown parameter `primary.kq`",
+        ),
+        (
+            lambda o: sensitivity_grid(o, params=("primary.kx", "kz"), n_points=3),
+            "unknown parameter `kz`",
+        ),
         (lambda o: sensitivity_sobol(o, n=100, key=jr.PRNGKey(0)), "power of two"),
-        (lambda o: sensitivity_sobol(o, n=64, key=jr.PRNGKey(0), lower=[-4.0, -1.0, -1.0]),
-         "leave the selection's bounds"),
-        (lambda o: sensitivity_sobol(o, n=64, key=jr.PRNGKey(0), lower=[1.0, -1.0, -1.0],
-                                     upper=[1.0, 1.0, 1.0]), "lower < upper"),
-        (lambda o: sensitivity_sobol(eqx.tree_at(lambda x: x.selection, o, LOG_SELECTION),
-                                     n=64, key=jr.PRNGKey(0)), "`primary.ky` has no finite"),
+        (
+            lambda o: sensitivity_sobol(o, n=64, key=jr.PRNGKey(0), lower=[-4.0, -1.0, -1.0]),
+            "leave the selection's bounds",
+        ),
+        (
+            lambda o: sensitivity_sobol(
+                o, n=64, key=jr.PRNGKey(0), lower=[1.0, -1.0, -1.0], upper=[1.0, 1.0, 1.0]
+            ),
+            "lower < upper",
+        ),
+        (
+            lambda o: sensitivity_sobol(
+                eqx.tree_at(lambda x: x.selection, o, LOG_SELECTION), n=64, key=jr.PRNGKey(0)
+            ),
+            "`primary.ky` has no finite",
+        ),
     ],
 )
 def test_objective_bad_input_raises_before_evaluation(call, match):

@@ -21,13 +21,21 @@ DURATION, RATE = 0.4, 100.0
 @pytest.fixture(scope="module")
 def tracks():
     keys = jr.split(jr.PRNGKey(3), 2)
-    return [synthesise_track(ERRIB176Spectrum.high(), key=k, length=80.0, fade_length=2.0) for k in keys]
+    return [
+        synthesise_track(ERRIB176Spectrum.high(), key=k, length=80.0, fade_length=2.0) for k in keys
+    ]
 
 
 def _run(params, track, speed):
     return simulate(
-        params, track, speed=speed, duration=DURATION, sample_rate=RATE, throw=False,
-        stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-10), max_steps=4096,
+        params,
+        track,
+        speed=speed,
+        duration=DURATION,
+        sample_rate=RATE,
+        throw=False,
+        stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-10),
+        max_steps=4096,
     ).q
 
 
@@ -61,7 +69,9 @@ def test_vmap_over_speeds_parameters_and_tracks_equals_loop(single, tracks):
     speeds = jnp.array([40.0, 55.0])
     kys = jnp.array([3e6, 5e6])
     stacked_tracks = jax.tree.map(lambda *x: jnp.stack(x), *tracks)
-    batched = jax.jit(jax.vmap(lambda ky, tr, v: _run(_with_ky(params, ky), tr, v)))(kys, stacked_tracks, speeds)
+    batched = jax.jit(jax.vmap(lambda ky, tr, v: _run(_with_ky(params, ky), tr, v)))(
+        kys, stacked_tracks, speeds
+    )
     for i in range(2):
         one = single(_with_ky(params, kys[i]), tracks[i], speeds[i])
         # A batched adaptive solve takes its own step sequence: agreement to the solver
@@ -91,9 +101,14 @@ def test_batch_runner_sharded_equals_single_device_and_reports_failures(tracks):
     ok = ~np.asarray(sharded.failed)
     scale = np.max(np.abs(np.asarray(one_device.outputs)[ok]))
     np.testing.assert_allclose(  # to solver tolerance, see the vmap test
-        np.asarray(sharded.outputs)[ok], np.asarray(one_device.outputs)[ok], rtol=0, atol=1e-5 * scale
+        np.asarray(sharded.outputs)[ok],
+        np.asarray(one_device.outputs)[ok],
+        rtol=0,
+        atol=1e-5 * scale,
     )
-    np.testing.assert_allclose(np.asarray(sharded.outputs)[0], member(kys[0]), rtol=0, atol=1e-5 * scale)
+    np.testing.assert_allclose(
+        np.asarray(sharded.outputs)[0], member(kys[0]), rtol=0, atol=1e-5 * scale
+    )
 
 
 def test_new_parameter_values_do_not_retrace(tracks):

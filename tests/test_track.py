@@ -58,8 +58,12 @@ def fra_oracle(n, channel, om):
 
 def quad_variance(oracle, band):
     lo, hi = 2 * math.pi / band[1], 2 * math.pi / band[0]
-    return np.array([quad(lambda w: oracle(c, w), lo, hi, epsabs=0, epsrel=1e-10, limit=200)[0]
-                     for c in range(3)])
+    return np.array(
+        [
+            quad(lambda w: oracle(c, w), lo, hi, epsabs=0, epsrel=1e-10, limit=200)[0]
+            for c in range(3)
+        ]
+    )
 
 
 OMEGAS = np.array([0.01, 0.09, 0.5, 0.8246, 2.0, 10.0])
@@ -128,8 +132,10 @@ def test_band_variance_reference_rms(level, rms):
 def test_fra_vertical_reference_rms():
     # reference doc 6.2, vertical RMS [mm] over 1.524-304.8 m for classes 1..6
     want = [37.6, 34.5, 28.2, 25.0, 15.6, 6.3]
-    got = [1e3 * math.sqrt(band_variance(FRASpectrum.track_class(n), (1.524, 304.8))[1])
-           for n in range(1, 7)]
+    got = [
+        1e3 * math.sqrt(band_variance(FRASpectrum.track_class(n), (1.524, 304.8))[1])
+        for n in range(1, 7)
+    ]
     np.testing.assert_allclose(got, want, rtol=0.01)
 
 
@@ -138,14 +144,15 @@ def test_fra_vertical_reference_rms():
 SHORT = 300.0  # [m] one length for the short tracks, so their compilations are shared
 
 
-@pytest.mark.parametrize("psd", [ERRIB176Spectrum.low(), FRASpectrum.track_class(5)],
-                         ids=["erri-low", "fra-5"])
+@pytest.mark.parametrize(
+    "psd", [ERRIB176Spectrum.low(), FRASpectrum.track_class(5)], ids=["erri-low", "fra-5"]
+)
 def test_synthesised_rms_and_independence(psd, getkey):
     fade = 20.0
     track = synthesise_track(psd, key=getkey(), length=20_000.0, fade_length=fade)
     values = np.asarray(track.values)
     assert values.shape == (80_001, 3)
-    plateau = values[int(fade / 0.25):-int(fade / 0.25)]
+    plateau = values[int(fade / 0.25) : -int(fade / 0.25)]
     target = np.sqrt(np.asarray(band_variance(psd, (3.0, 70.0))))
     np.testing.assert_allclose(plateau.std(axis=0), target, rtol=0.05)
     corr = np.corrcoef(plateau.T)
@@ -172,8 +179,9 @@ def test_fade_in(getkey):
     u = np.clip(s / fade, 0.0, 1.0)
     ramp = 6 * u**5 - 15 * u**4 + 10 * u**3
     head = s <= SHORT / 2
-    np.testing.assert_allclose(w_faded[head], ramp[head, None] * w_raw[head], rtol=1e-12,
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        w_faded[head], ramp[head, None] * w_raw[head], rtol=1e-12, atol=1e-15
+    )
     # smooth start: the slope at the start is small against its plateau scale
     dw0 = np.asarray(faded.evaluate(50.0)[1])
     dw_scale = np.std(np.diff(w_raw, axis=0), axis=0) / 0.25
@@ -222,6 +230,7 @@ def test_band_variance_bad_band():
 
 
 # --- spline -----------------------------------------------------------------------------------
+
 
 def smooth(s):
     k1, k2 = 2 * np.pi / 17, 2 * np.pi / 31
@@ -319,6 +328,7 @@ def test_constructor_checks_shape():
 
 
 # --- CSV --------------------------------------------------------------------------------------
+
 
 def test_csv_round_trip(tmp_path, getkey):
     track = synthesise_track(ERRIB176Spectrum.low(), key=getkey(), length=SHORT, start=12.5)

@@ -46,5 +46,7 @@ def save_trajectory(path, trajectory: Trajectory) -> Path:
     else:
         names, units = _columns()
         header = ",".join(["time_s"] + [f"{n}[{u}]" for n, u in zip(names, units)])
-        np.savetxt(path, np.column_stack([ts, q, qd, qdd]), delimiter=",", header=header, comments="")
+        np.savetxt(
+            path, np.column_stack([ts, q, qd, qdd]), delimiter=",", header=header, comments=""
+        )
     return path

@@ -4,11 +4,11 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from ..contact import (
+    ConeGeometry,
+    CreepCoefficients,
     cone_geometry,
     cone_on_rail_curvatures,
-    ConeGeometry,
     creep_coefficients,
-    CreepCoefficients,
     hertz_contact,
 )
 from ..params import BogieParams

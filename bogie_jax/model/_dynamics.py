@@ -14,11 +14,11 @@ import jax.scipy.linalg as jsl
 from ..params import BogieParams, ModelOptions
 from ..track import TrackIrregularity
 from . import _kinematics as kin
-from ._constants import model_constants, ModelConstants
+from ._constants import ModelConstants, model_constants
 from ._lagrangian import frame_rotation_terms, wheelset_terms
 from ._layout import GRAVITY, N_DOF
 from ._smallmath import solve3, solve_spd2
-from ._suspension import generalised_forces as suspension_generalised_forces, N_PRIMARY
+from ._suspension import N_PRIMARY, generalised_forces as suspension_generalised_forces
 from ._wheel_rail import contact_generalised_forces, normal_loads
 
 
@@ -84,7 +84,9 @@ def _wheelset_forces(model: BogieModel, q, qd, w, wd, wdd, axlebox_forces):
         slope = kin.height_gradient(pos[0], pos[1], w_, p, const)
         gravity = -p.masses.wheelset.mass * GRAVITY * slope
         loads = normal_loads(boxes, wdd_, p, const)
-        creep = contact_generalised_forces(pos, vel, w_, wd_, x_, loads, p, const, options, model.speed)
+        creep = contact_generalised_forces(
+            pos, vel, w_, wd_, x_, loads, p, const, options, model.speed
+        )
         total = gravity + creep
         if options.flange_contact:
             c = p.contact
@@ -94,9 +96,7 @@ def _wheelset_forces(model: BogieModel, q, qd, w, wd, wdd, axlebox_forces):
         return total
 
     boxes = axlebox_forces.reshape(2, 2, 3)
-    return jax.vmap(one)(
-        _wheelset_coordinates(q), _wheelset_coordinates(qd), w, wd, wdd, x, boxes
-    )
+    return jax.vmap(one)(_wheelset_coordinates(q), _wheelset_coordinates(qd), w, wd, wdd, x, boxes)
 
 
 def _inertia_blocks(model: BogieModel, q, qd, w, wd, wdd):
@@ -104,9 +104,9 @@ def _inertia_blocks(model: BogieModel, q, qd, w, wd, wdd):
     p, const = model.params, model.constants
     spin = model.speed / p.contact.wheel_radius
     frame_m, frame_h = frame_rotation_terms(q[3:6], qd[3:6], p)
-    ws_m, ws_h = jax.vmap(
-        lambda a, b, c, d, e: wheelset_terms(a, b, c, d, e, p, const, spin)
-    )(_wheelset_coordinates(q), _wheelset_coordinates(qd), w, wd, wdd)
+    ws_m, ws_h = jax.vmap(lambda a, b, c, d, e: wheelset_terms(a, b, c, d, e, p, const, spin))(
+        _wheelset_coordinates(q), _wheelset_coordinates(qd), w, wd, wdd
+    )
     return (frame_m, frame_h), (ws_m, ws_h)
 
 
@@ -142,5 +142,3 @@ def mass_matrix(model: BogieModel, q, t=0.0):
         idx = jnp.array([i, 2 + i])
         wheelsets = wheelsets.at[idx[:, None], idx[None, :]].set(ws_m[i])
     return jsl.block_diag(frame, wheelsets)
-
-

@@ -114,7 +114,9 @@ def contact_normals(y, w, params: BogieParams, const: ModelConstants):
     """
     e0 = params.contact.contact_semi_distance
     y_rel = relative_lateral(y, w, params.contact.wheel_radius)
-    slope = params.contact.cone_slope + const.geometry.contact_angle_coefficient / e0 * y_rel * SIDES
+    slope = (
+        params.contact.cone_slope + const.geometry.contact_angle_coefficient / e0 * y_rel * SIDES
+    )
     delta = jnp.arctan(slope)
     local = jnp.stack([jnp.zeros(2), -SIDES * jnp.sin(delta), jnp.cos(delta)], axis=-1)
     return rows_times(local, rot_x(w[2]))

@@ -16,9 +16,9 @@ import jax
 import jax.numpy as jnp
 
 from ..params import BogieParams, ModelOptions
-from ._constants import ModelConstants
 from . import _kinematics as kin
-from ._kinematics import axle_positions, frame_points, SIDES
+from ._constants import ModelConstants
+from ._kinematics import SIDES, axle_positions, frame_points
 from ._smallmath import matvec, rows_times
 
 
@@ -45,7 +45,9 @@ def _body_attachments(q, w, params: BogieParams, const: ModelConstants):
     y, psi, x = q[6:8], q[8:10], axle_positions(params)
     centres = jax.vmap(kin.centre, in_axes=(0, 0, 0, 0, None, None))(y, psi, w, x, params, const)
     rots = jax.vmap(kin.rotation, in_axes=(0, 0, 0, None, None))(y, psi, w, params, const)
-    axleboxes = (centres[:, None, :] + jax.vmap(rows_times, in_axes=(None, 0))(local, rots)).reshape(4, 3)
+    axleboxes = (
+        centres[:, None, :] + jax.vmap(rows_times, in_axes=(None, 0))(local, rots)
+    ).reshape(4, 3)
     return jnp.concatenate([axleboxes, _carbody_attachments(params)])
 
 
@@ -151,7 +153,9 @@ def spring_preloads(kz, design_load):
     return design_load * jnp.where(loaded, kz / jnp.where(loaded, mean, 1.0), 1.0)
 
 
-def element_forces(delta, delta_rate, params: BogieParams, const: ModelConstants, options: ModelOptions):
+def element_forces(
+    delta, delta_rate, params: BogieParams, const: ModelConstants, options: ModelOptions
+):
     """Element forces f = K Delta + C Delta_dot + P [N], shape (8, 3); the force on A is -f.
 
     K, C per element from the per-element parameters (primary per axlebox 1L, 1R, 2L, 2R;

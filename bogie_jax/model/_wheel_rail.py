@@ -19,8 +19,8 @@ import jax.numpy as jnp
 
 from ..contact import CreepCoefficients, linear_creep_forces, shen_hedrick_elkins
 from ..params import BogieParams, ModelOptions
-from ._constants import ModelConstants
 from . import _kinematics as kin
+from ._constants import ModelConstants
 from ._kinematics import E_X, SIDES
 from ._layout import GRAVITY
 from ._smallmath import matvec
@@ -73,7 +73,16 @@ def scaled_creep_coefficients(normal_load, const: ModelConstants) -> CreepCoeffi
 
 
 def contact_generalised_forces(
-    p, pd, w, wd, x, normal_load, params: BogieParams, const: ModelConstants, options: ModelOptions, speed
+    p,
+    pd,
+    w,
+    wd,
+    x,
+    normal_load,
+    params: BogieParams,
+    const: ModelConstants,
+    options: ModelOptions,
+    speed,
 ):
     """Generalised forces on (y, yaw) [N, N m] of the creep forces, Q = (dv_c/dp_dot)^T F.
 

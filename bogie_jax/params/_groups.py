@@ -47,7 +47,11 @@ class Masses(_Group):
 
     def __check_init__(self):
         ixx, izz = self.wheelset.ixx, self.wheelset.izz
-        if _is_concrete(ixx) and _is_concrete(izz) and abs(float(ixx) - float(izz)) > 1e-9 * float(ixx):
+        if (
+            _is_concrete(ixx)
+            and _is_concrete(izz)
+            and abs(float(ixx) - float(izz)) > 1e-9 * float(ixx)
+        ):
             raise ParameterError(
                 f"`Masses.wheelset.izz` = {float(izz):g} kg m^2 must equal `Masses.wheelset.ixx` = "
                 f"{float(ixx):g} kg m^2: a wheelset is axisymmetric about its axle (docs/model.md)"
@@ -64,10 +68,16 @@ class Geometry(_Group):
         unit="m", valid=(0.05, 3.0), bounds=(0.8, 1.2), doc="lateral half-distance of axleboxes"
     )
     secondary_semi_spacing: float = physical(
-        unit="m", valid=(0.05, 3.0), bounds=(0.8, 1.4), doc="lateral half-distance of secondary springs"
+        unit="m",
+        valid=(0.05, 3.0),
+        bounds=(0.8, 1.4),
+        doc="lateral half-distance of secondary springs",
     )
     yaw_damper_semi_spacing: float = physical(
-        unit="m", valid=(0.05, 3.0), bounds=(1.0, 1.6), doc="lateral half-distance of anti-yaw dampers"
+        unit="m",
+        valid=(0.05, 3.0),
+        bounds=(1.0, 1.6),
+        doc="lateral half-distance of anti-yaw dampers",
     )
     frame_cg_height: float = physical(
         unit="m", valid=(0.05, 3.0), bounds=(0.45, 0.9), doc="frame centre of gravity above rail"
@@ -84,7 +94,10 @@ class WheelRailContact(_Group):
         unit="m", valid=(0.1, 2.0), bounds=(0.40, 0.50), doc="nominal rolling radius r0"
     )
     contact_semi_distance: float = physical(
-        unit="m", valid=(0.3, 1.5), bounds=(0.70, 0.80), doc="half distance between contact points e0"
+        unit="m",
+        valid=(0.3, 1.5),
+        bounds=(0.70, 0.80),
+        doc="half distance between contact points e0",
     )
     cone_slope: float = physical(
         unit="-", valid=(1e-4, 0.6), bounds=(0.02, 0.40), doc="wheel cone slope tan(delta0)"
@@ -93,7 +106,10 @@ class WheelRailContact(_Group):
         unit="m", valid=(0.01, 10.0), bounds=(0.20, 0.50), doc="rail head crown radius R_r"
     )
     young_modulus: float = physical(
-        unit="Pa", valid=(1e9, 1e13), bounds=(1.9e11, 2.2e11), doc="Young's modulus (wheel and rail)"
+        unit="Pa",
+        valid=(1e9, 1e13),
+        bounds=(1.9e11, 2.2e11),
+        doc="Young's modulus (wheel and rail)",
     )
     poisson_ratio: float = physical(
         unit="-", valid=(0.0, 0.5), bounds=(0.25, 0.30), doc="Poisson's ratio (wheel and rail)"
@@ -105,7 +121,10 @@ class WheelRailContact(_Group):
         unit="-", valid=(0.0, 2.0), bounds=(0.1, 0.5), doc="wheel-rail friction coefficient mu"
     )
     flange_clearance: float = physical(
-        unit="m", valid=(0.0, 0.1), bounds=(0.005, 0.012), doc="lateral clearance before flange contact"
+        unit="m",
+        valid=(0.0, 0.1),
+        bounds=(0.005, 0.012),
+        doc="lateral clearance before flange contact",
     )
     flange_stiffness: float = physical(
         unit="N/m", valid=(0.0, 1e10), bounds=(1e7, 1e8), doc="lateral flange contact stiffness"
@@ -135,12 +154,18 @@ class PrimarySuspension(_Group):
     one axlebox.
     """
 
-    kx: float = _axlebox(unit="N/m", valid=(0.0, 1e10), bounds=(5e6, 4e7), doc="longitudinal stiffness")
+    kx: float = _axlebox(
+        unit="N/m", valid=(0.0, 1e10), bounds=(5e6, 4e7), doc="longitudinal stiffness"
+    )
     ky: float = _axlebox(unit="N/m", valid=(0.0, 1e10), bounds=(2e6, 1e7), doc="lateral stiffness")
     kz: float = _axlebox(unit="N/m", valid=(0.0, 1e10), bounds=(4e5, 2e6), doc="vertical stiffness")
-    cx: float = _axlebox(unit="N s/m", valid=(0.0, 1e8), bounds=(5e3, 3e4), doc="longitudinal damping")
+    cx: float = _axlebox(
+        unit="N s/m", valid=(0.0, 1e8), bounds=(5e3, 3e4), doc="longitudinal damping"
+    )
     cy: float = _axlebox(unit="N s/m", valid=(0.0, 1e8), bounds=(1e3, 1e4), doc="lateral damping")
-    cz: float = _axlebox(unit="N s/m", valid=(0.0, 1e8), bounds=(2e3, 1.5e4), doc="vertical damping")
+    cz: float = _axlebox(
+        unit="N s/m", valid=(0.0, 1e8), bounds=(2e3, 1.5e4), doc="vertical damping"
+    )
 
 
 class SecondarySuspension(_Group):
@@ -148,7 +173,9 @@ class SecondarySuspension(_Group):
     right), track axes. Fields of shape (2,); a scalar is broadcast. Names: `secondary.cy` (both
     sides tied) or `secondary.left.cy`."""
 
-    kx: float = _side(unit="N/m", valid=(0.0, 1e10), bounds=(1e5, 3e5), doc="longitudinal stiffness")
+    kx: float = _side(
+        unit="N/m", valid=(0.0, 1e10), bounds=(1e5, 3e5), doc="longitudinal stiffness"
+    )
     ky: float = _side(unit="N/m", valid=(0.0, 1e10), bounds=(1e5, 3e5), doc="lateral stiffness")
     kz: float = _side(unit="N/m", valid=(0.0, 1e10), bounds=(1.5e5, 6e5), doc="vertical stiffness")
     cy: float = _side(unit="N s/m", valid=(0.0, 1e8), bounds=(1e4, 8e4), doc="lateral damping")

@@ -113,9 +113,7 @@ def resolve_parameter(params: eqx.Module, name: str, context: str = "") -> Param
     valid = parameter_names(params, elements=True)
     close = difflib.get_close_matches(name, valid, n=3)
     hint = f" (did you mean {', '.join(close)}?)" if close else ""
-    raise ValueError(
-        f"unknown parameter {name!r}{context}{hint}; valid names: {', '.join(valid)}"
-    )
+    raise ValueError(f"unknown parameter {name!r}{context}{hint}; valid names: {', '.join(valid)}")
 
 
 def _leaf(params, path):

@@ -11,7 +11,6 @@ degree s written as an integer with its leading and trailing one (x^2 + x + 1 ->
 >     https://web.maths.unsw.edu.au/~fkuo/sobol/ (BSD-style licence, copyright S. Joe and F. Kuo).
 """
 
-
 DIRECTION_NUMBERS: tuple[tuple[int, tuple[int, ...]], ...] = (
     (1, (1,)),
     (3, (1,)),

@@ -6,7 +6,6 @@ random digital shift, which keeps the (t, m, s)-net property, so N = 2^m points 
 Shared by the multistart designs (`identify`) and the Sobol' sensitivity indices.
 """
 
-
 import functools
 
 import jax

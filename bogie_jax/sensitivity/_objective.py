@@ -85,9 +85,18 @@ def sensitivity_sobol(
     """
     lo, hi = objective_bounds(objective, lower, upper)
     return sobol_analysis(
-        objective_function(objective, output), lo, hi, n=n, key=key,
-        names=objective.selection.names, estimator=estimator, n_resamples=n_resamples,
-        confidence=confidence, chunk_size=chunk_size, devices=devices, failure_fn=failure_fn,
+        objective_function(objective, output),
+        lo,
+        hi,
+        n=n,
+        key=key,
+        names=objective.selection.names,
+        estimator=estimator,
+        n_resamples=n_resamples,
+        confidence=confidence,
+        chunk_size=chunk_size,
+        devices=devices,
+        failure_fn=failure_fn,
     )
 
 
@@ -113,8 +122,15 @@ def sensitivity_sweeps(
     lo, hi = objective_bounds(objective, lower, upper)
     sel = objective.selection
     return screening_sweeps(
-        objective_function(objective, output), sel.nominal, lo, hi, n_points=n_points,
-        params=params, names=sel.names, chunk_size=chunk_size, devices=devices,
+        objective_function(objective, output),
+        sel.nominal,
+        lo,
+        hi,
+        n_points=n_points,
+        params=params,
+        names=sel.names,
+        chunk_size=chunk_size,
+        devices=devices,
         failure_fn=failure_fn,
     )
 
@@ -139,8 +155,14 @@ def sensitivity_grid(
     lo, hi = objective_bounds(objective, lower, upper)
     sel = objective.selection
     return screening_grid(
-        objective_function(objective, output), sel.nominal, lo, hi, params=params,
-        n_points=n_points, names=sel.names, chunk_size=chunk_size, devices=devices,
+        objective_function(objective, output),
+        sel.nominal,
+        lo,
+        hi,
+        params=params,
+        n_points=n_points,
+        names=sel.names,
+        chunk_size=chunk_size,
+        devices=devices,
         failure_fn=failure_fn,
     )
-

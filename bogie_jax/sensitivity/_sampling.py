@@ -25,9 +25,7 @@ class SaltelliSample(eqx.Module):
         return jnp.concatenate([self.a, self.b, self.ab.reshape(-1, d)])
 
 
-def saltelli_sample(
-    lower, upper, n: int, *, key: PRNGKeyArray | None
-) -> SaltelliSample:
+def saltelli_sample(lower, upper, n: int, *, key: PRNGKeyArray | None) -> SaltelliSample:
     """Saltelli's sampling scheme over the box `[lower, upper]` (inputs uniform on it).
 
     **Arguments:**

@@ -192,9 +192,7 @@ def check_scalar_function(fn: Callable, d: int, dtype) -> None:
 
 def evaluate(fn, points, *, chunk_size, devices, failure_fn):
     """`fn` on each row of `points` through the batch runner; failed members become NaN."""
-    result = batch_runner(fn, chunk_size=chunk_size, devices=devices, failure_fn=failure_fn)(
-        points
-    )
+    result = batch_runner(fn, chunk_size=chunk_size, devices=devices, failure_fn=failure_fn)(points)
     failed: Bool[Array, " m"] = result.failed
     outputs = jnp.where(failed, jnp.nan, result.outputs)
     return outputs, failed
@@ -259,4 +257,3 @@ def sobol_analysis(
         names=names,
         n_failed=jnp.sum(failed),
     )
-

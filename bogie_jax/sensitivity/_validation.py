@@ -38,8 +38,7 @@ def check_bounds(lower, upper, names: Sequence[str] | None = None):
             raise ValueError(f"bounds of `{name}` must be finite, got [{lo[i]:g}, {hi[i]:g}]")
         if not lo[i] < hi[i]:
             raise ValueError(
-                f"bounds of `{name}` need lower < upper, got lower = {lo[i]:g} >= "
-                f"upper = {hi[i]:g}"
+                f"bounds of `{name}` need lower < upper, got lower = {lo[i]:g} >= upper = {hi[i]:g}"
             )
     return lo, hi
 

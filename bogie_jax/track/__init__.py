@@ -14,12 +14,12 @@ from ._psd import (
     ERRIB176Spectrum as ERRIB176Spectrum,
     FRASpectrum as FRASpectrum,
 )
-from ._synthesis import (
-    band_variance as band_variance,
-    synthesise_track as synthesise_track,
-)
 from ._reference import (
     SPECTRA as SPECTRA,
     TrackReference as TrackReference,
     spectrum_from_name as spectrum_from_name,
+)
+from ._synthesis import (
+    band_variance as band_variance,
+    synthesise_track as synthesise_track,
 )

@@ -197,4 +197,3 @@ def _check_finite(name: str, a: np.ndarray) -> None:
             row=idx[0],
             column=idx[1] if len(idx) > 1 else None,
         )
-

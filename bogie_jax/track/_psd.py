@@ -145,15 +145,23 @@ class FRASpectrum(AbstractTrackPSD):
         a_v, a_a, omega_s = _FRA_CLASSES[int(n)]
         cm2_to_m2 = 1e-4
         return cls(
-            A_v=a_v * cm2_to_m2, A_a=a_a * cm2_to_m2, omega_c=0.8245, omega_s=omega_s, k=0.25,
+            A_v=a_v * cm2_to_m2,
+            A_a=a_a * cm2_to_m2,
+            omega_c=0.8245,
+            omega_s=omega_s,
+            k=0.25,
             b=0.75,
         )
 
     def __call__(self, omega: ArrayLike) -> Float[Array, "*omega 3"]:
         w2 = jnp.square(jnp.asarray(omega))
         base = self.k * self.omega_c**2 / (w2 * (w2 + self.omega_c**2))
-        height = 4.0 * self.k * self.A_v * self.omega_c**2 / (
-            (w2 + self.omega_c**2) * (w2 + self.omega_s**2)
+        height = (
+            4.0
+            * self.k
+            * self.A_v
+            * self.omega_c**2
+            / ((w2 + self.omega_c**2) * (w2 + self.omega_s**2))
         )
         cross = height / (2.0 * self.b) ** 2
         return jnp.stack([self.A_a * base, self.A_v * base, cross], axis=-1)

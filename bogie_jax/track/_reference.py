@@ -10,7 +10,7 @@ import math
 
 import jax.random as jr
 
-from ._irregularity import perfect_track, TrackIrregularity
+from ._irregularity import TrackIrregularity, perfect_track
 from ._psd import AbstractTrackPSD, ERRIB176Spectrum, FRASpectrum
 from ._synthesis import synthesise_track
 

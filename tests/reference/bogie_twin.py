@@ -1,4 +1,5 @@
-# long: an independent Newton-Euler twin of the whole model is one derivation; split, it would hide its independence.
+# long: an independent Newton-Euler twin of the whole model is one derivation;
+# split, it would hide its independence.
 """Independent numpy twin of the 10-DOF bogie model (test oracle for `bogie_jax.model`).
 
 Contract: `docs/model.md`. The JAX model derives its equations of motion from a Lagrangian by
