@@ -44,6 +44,8 @@ __version__ = importlib.metadata.version("bogie-jax")
 
 
 def __getattr__(name: str):
+    if name in _EXPORTS:  # a subpackage, e.g. `bogie_jax.params`
+        return importlib.import_module(f".{name}", __name__)
     if name in _WHERE:
         value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
         globals()[name] = value  # later look-ups skip this function

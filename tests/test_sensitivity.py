@@ -1,3 +1,5 @@
+# long: the sensitivity package's tests (screening, sampling, Sobol' indices against SALib and
+# the Ishigami oracle) share their fixtures.
 """Sensitivity: Sobol' points, Saltelli design, Sobol' indices (Ishigami, SALib) and screening."""
 
 import equinox as eqx
