@@ -13,7 +13,9 @@ import pytest
 
 
 jax.config.update("jax_enable_x64", True)
-# Identical programs compiled by different tests (CLI, notebooks, library calls) are compiled once.
+# A shared persistent cache. JAX writes no program with host callbacks to it, and equinox's
+# runtime checks (inside every diffrax solve) are host callbacks here (`EQX_ON_ERROR` is not set,
+# so `throw=True` errors still raise): only programs without a solve are reused across tests.
 jax.config.update(
     "jax_compilation_cache_dir", os.path.join(os.path.dirname(__file__), "..", ".jax_cache")
 )
