@@ -6,12 +6,17 @@ import json
 import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
+import optimistix as optx
 import pytest
 
 from bogie_jax.identify import (
+    RESULT_NAMES,
     BoxTransform,
     LeastSquaresProblem,
     fit_multistart_chunked,
+    results_from_names,
+    status_name,
+    status_names,
 )
 
 
@@ -90,3 +95,29 @@ def test_record_of_another_run_is_refused(whole):
     _, path, _ = whole
     with pytest.raises(ValueError, match="written by another run"):
         fit_multistart_chunked(PROBLEM, record=path, **{**KW, "key": jr.PRNGKey(4)})
+
+
+def test_status_is_results_and_travels_by_name(whole, tmp_path):
+    """Statuses are `optimistix.RESULTS`, recorded by member name and read back by name; a
+    record with a name that is no `RESULTS` member is refused before anything compiles."""
+    run, path, _ = whole
+    res = run.result
+    assert set(res.status) <= set(RESULT_NAMES)
+    # failed starts (oracle: the residuals are NaN wherever the run ended at x < -1.5, or the
+    # solver status is not successful) are exactly the flagged ones
+    expected = (res.status != "successful") | ~np.isfinite(res.costs)
+    np.testing.assert_array_equal(res.failed, expected)
+    assert isinstance(res.best.status, optx.RESULTS) and res.best.success
+    assert status_name(res.best.status) == "successful"
+    names = ["successful", "nonlinear_max_steps_reached", "nonfinite"]
+    batched = results_from_names(names)
+    assert isinstance(batched, optx.RESULTS)
+    np.testing.assert_array_equal(status_names(batched), names)
+    np.testing.assert_array_equal(
+        np.asarray(batched == optx.RESULTS.nonlinear_max_steps_reached), [False, True, False]
+    )
+    line = json.loads(path.read_text().splitlines()[0])
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(json.dumps({**line, "status": "no_such_status"}) + "\n")
+    with pytest.raises(ValueError, match="unknown solver status"):
+        fit_multistart_chunked(PROBLEM, record=bad, **KW)

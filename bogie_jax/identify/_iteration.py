@@ -4,7 +4,8 @@
 (`bogie_jax.queued_batch`) needs the same fit as `init`/`step`/`done`/`output`, so that a lane can
 start the next start when its fit ends. This follows optimistix's own iteration (`solver.init`,
 `solver.step`, `solver.terminate` on the previous iterate, a non-finite iterate ends the fit, the
-step limit gives `nonlinear_max_steps_reached`), so a fit stepped here takes the same steps and
+step limit gives `nonlinear_max_steps_reached`; the status is carried as an `optimistix.RESULTS`
+through the loop), so a fit stepped here takes the same steps and
 ends with the same status as `LeastSquaresMethod.solve`. Only the Gauss-Newton family (LM,
 Gauss-Newton, Dogleg) is stepped this way: their `postprocess` returns the iterate unchanged.
 """
@@ -18,11 +19,7 @@ import optimistix as optx
 
 from ..queued_batch import IterativeMember, queued_runner
 from ._householder import HouseholderQR
-from ._local import LeastSquaresMethod, LocalOutput, _code
-from ._problem import SUCCESS
-
-
-MAX_STEPS = int(optx.RESULTS.nonlinear_max_steps_reached._value)
+from ._local import LeastSquaresMethod, LocalOutput
 
 
 def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int):
@@ -54,7 +51,7 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
         state = solver_init(theta0, problem)
         terminate, result = status(theta0, problem, state)
         dynamic = eqx.partition(state, eqx.is_array)[0]
-        return theta0, jnp.asarray(0), dynamic, terminate, _code(result), data
+        return theta0, jnp.asarray(0), dynamic, terminate, result, data
 
     def step(carry):
         theta, steps, dynamic, _, _, data = carry
@@ -66,16 +63,17 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
         new_theta, state, _ = solver.step(fn, theta, problem, options, state, tags)
         terminate, result = status(theta, problem, state)  # optimistix tests the old iterate
         dynamic = eqx.partition(state, eqx.is_array)[0]
-        return new_theta, steps + 1, dynamic, terminate, _code(result), data
+        return new_theta, steps + 1, dynamic, terminate, result, data
 
     def done(carry):
         _, steps, _, terminate, result, _ = carry
-        return terminate | (result != SUCCESS) | (steps >= max_steps)
+        return terminate | (result != optx.RESULTS.successful) | (steps >= max_steps)
 
     def output(carry):
-        theta, steps, _, terminate, code, _ = carry
+        theta, steps, _, terminate, result, _ = carry
         # as optimistix: still running at the step limit -> nonlinear_max_steps_reached
-        result = jnp.where((code == SUCCESS) & ~terminate, MAX_STEPS, code)
+        running = (result == optx.RESULTS.successful) & ~terminate
+        result = optx.RESULTS.where(running, optx.RESULTS.nonlinear_max_steps_reached, result)
         return LocalOutput(theta, result, steps, steps, steps)
 
     return IterativeMember(init=init, step=step, done=done, output=output)
@@ -124,5 +122,5 @@ def queued_fits(method, problem_of, max_steps: int, *, lanes: int, devices=None)
         lanes=lanes,
         devices=devices,
         post=cost,
-        failure_fn=lambda out: out[0].result != SUCCESS,
+        failure_fn=lambda out: out[0].result != optx.RESULTS.successful,
     )

@@ -18,33 +18,16 @@ import optimistix as optx
 
 from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
 from ._householder import HouseholderQR
-from ._problem import (
-    _legacy_code,
-    as_problem,
-    as_results,
-    is_successful,
-    param_names,
-    start_theta,
-    status_name,
-)
-
-
-def _code(result) -> jax.Array:
-    """Transitional: `LocalOutput.result` is carried as an int32 code while `_iteration.py` and
-    `_chunked.py` build it from codes; once they carry `optimistix.RESULTS`, make the field an
-    `optx.RESULTS` (converter `as_results`) and drop this. Read codes only with `as_results`,
-    `is_successful` and `status_names`."""
-    if isinstance(result, type(optx.RESULTS.successful)):
-        result = _legacy_code(result)
-    return jnp.asarray(result, dtype=jnp.int32)
+from ._problem import as_problem, is_successful, param_names, start_theta, status_name
 
 
 class LocalOutput(eqx.Module):
     """Raw outcome of one local solve (vmappable: no `Solution` objects). `result`: the solver
-    status (an `optimistix.RESULTS`, stored as its code for now, see `_code`)."""
+    status, an `optimistix.RESULTS` (batched along the member axis in a batch; on the host read
+    it with `status_names`, store it by name and read it back with `results_from_names`)."""
 
     theta: jax.Array
-    result: jax.Array = eqx.field(converter=_code)
+    result: optx.RESULTS
     num_steps: jax.Array
     num_fn_evals: jax.Array
     num_jac_evals: jax.Array
@@ -233,7 +216,7 @@ class FitResult(eqx.Module):
     num_steps: jax.Array
     num_fn_evals: jax.Array
     num_jac_evals: jax.Array
-    status: optx.RESULTS = eqx.field(converter=as_results)
+    status: optx.RESULTS
     wall_time: jax.Array
     uncertainty: Covariance
 

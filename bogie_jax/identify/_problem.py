@@ -155,39 +155,17 @@ RESULT_NAMES = tuple(
 )
 
 
-def _legacy_code(item) -> jax.Array:
-    return jax.tree.leaves(item)[0]  # the item's only leaf, its int32 code
-
-
-def as_results(result):
-    """`result` as an `optimistix.RESULTS` (scalar or batched). An int32 code array is accepted
-    from producers that still carry codes (`_iteration.py`, `_chunked.py`; transitional)."""
-    if isinstance(result, type(optx.RESULTS.successful)):
-        return result
-    code = jnp.asarray(result)
-
-    def one(c):
-        out = optx.RESULTS.successful
-        for name in RESULT_NAMES:
-            item = getattr(optx.RESULTS, name)
-            out = optx.RESULTS.where(c == _legacy_code(item), item, out)
-        return out
-
-    if code.ndim == 0:
-        return one(code)
-    flat = jax.vmap(one)(code.reshape(-1))
-    return jax.tree.map(lambda x: x.reshape(code.shape), flat)
-
-
 def is_successful(result) -> jax.Array:
-    """Boolean (array, under vmap): whether `result` is `RESULTS.successful`."""
-    return as_results(result) == optx.RESULTS.successful
+    """Boolean (array, under vmap): whether `result` (an `optimistix.RESULTS`) is
+    `RESULTS.successful`."""
+    return result == optx.RESULTS.successful
 
 
 def status_names(result) -> np.ndarray:
-    """The member names (`RESULT_NAMES`) of a concrete, possibly batched, `RESULTS`."""
-    result = as_results(result)
-    names = np.full(np.shape(_legacy_code(result)), "unknown", dtype=object)
+    """The member names (`RESULT_NAMES`) of a concrete, possibly batched, `optimistix.RESULTS`
+    (`"unknown"` for a member not listed there)."""
+    shape = np.shape(np.asarray(result == optx.RESULTS.successful))
+    names = np.full(shape, "unknown", dtype=object)
     for name in RESULT_NAMES:
         names = np.where(np.asarray(result == getattr(optx.RESULTS, name)), name, names)
     return names.astype(str)
@@ -199,12 +177,12 @@ def status_name(result) -> str:
 
 
 def results_from_names(names) -> "optx.RESULTS":
-    """A batched `RESULTS` from member names (e.g. read back from records)."""
-    items = [getattr(optx.RESULTS, str(n)) for n in names]
-    return jax.tree.map(lambda *codes: jnp.stack(codes), *items)
+    """A batched `optimistix.RESULTS` from member names (e.g. read back from records).
 
-
-# Transitional: `_iteration.py` and `_chunked.py` still carry int32 codes; remove once they
-# carry `RESULTS` (see `as_results`).
-SUCCESS = int(_legacy_code(optx.RESULTS.successful))
-STATUS_NAMES = {int(_legacy_code(getattr(optx.RESULTS, n))): n for n in RESULT_NAMES}
+    **Raises:** `ValueError` for a name that is not one of `RESULT_NAMES`."""
+    names = [str(n) for n in names]
+    bad = sorted(set(names) - set(RESULT_NAMES))
+    if bad:
+        raise ValueError(f"unknown solver status {bad}; valid names: {list(RESULT_NAMES)}")
+    items = [getattr(optx.RESULTS, n) for n in names]
+    return jax.tree.map(lambda *codes: jnp.stack([jnp.asarray(c) for c in codes]), *items)
