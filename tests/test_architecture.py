@@ -19,6 +19,7 @@ PACKAGE = ROOT / "bogie_jax"
 LAYERS = {
     "_precision": 0,
     "_validation": 0,
+    "_householder": 0,  # a least-squares / square linear solver in plain XLA operations
     "params": 0,
     "qmc": 0,  # quasi-Monte Carlo points (multistart designs, Sobol' indices)
     "contact": 1,

@@ -9,17 +9,18 @@ primary springs, the gravitational stiffness of the conical wheels (paper eq. 2:
 -W xi for yaw) and the creep forces of the rolling wheelset at q_dot = 0 (longitudinal creepage
 -+lambda y / r0 and lateral creepage -yaw do not depend on the speed, so neither does q0).
 
-Newton's method (optimistix) from q = 0; the Jacobian da/dq = -M^-1 K_eff is non-singular for a
-bogie whose every coordinate is held (tested). q0 is differentiable with respect to the
-parameters by the implicit function theorem (`optimistix.ImplicitAdjoint`): dq0/dp =
+Newton's method (optimistix, with the plain-XLA `HouseholderQR` linear solver, which works inside
+`shard_map` where lineax's `LU` does not) from q = 0; the Jacobian da/dq = -M^-1 K_eff is
+non-singular for a bogie whose every coordinate is held (tested). q0 is differentiable with
+respect to the parameters by the implicit function theorem (`optimistix.ImplicitAdjoint`): dq0/dp =
 -(da/dq)^-1 da/dp, in forward and reverse mode. A symmetric bogie has q0 = 0 (its springs carry
 their design loads at q = 0).
 """
 
 import jax.numpy as jnp
-import lineax as lx
 import optimistix as optx
 
+from .._householder import HouseholderQR
 from ..params import BogieParams, ModelOptions
 from ..track import perfect_track
 from ._dynamics import accelerations, build_model
@@ -53,7 +54,7 @@ def static_equilibrium_solve(
     """The optimistix `Solution` of the static equilibrium (see `static_equilibrium`); its
     `value` is q0, its `result` says whether Newton converged."""
     model = build_model(params, speed=EQUILIBRIUM_SPEED, track=perfect_track(), options=options)
-    solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=lx.LU())
+    solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=HouseholderQR())
     return optx.root_find(
         _residual,
         solver,
@@ -61,7 +62,7 @@ def static_equilibrium_solve(
         args=model,
         max_steps=max_steps,
         throw=throw,
-        adjoint=optx.ImplicitAdjoint(linear_solver=lx.LU()),
+        adjoint=optx.ImplicitAdjoint(linear_solver=HouseholderQR()),
     )
 
 
