@@ -80,19 +80,36 @@ def per_device(fn: Callable, devices, spec: PartitionSpec):
     return jax.jit(mapped, in_shardings=sharding, out_shardings=sharding), sharding
 
 
-def ahead_of_time(jitted: Callable) -> Callable:
-    """`executable(args)`: `jitted` compiled for the structure, shapes and dtypes of `args`,
-    compiled once per such signature and kept."""
-    compiled = {}
+class BatchRunner:
+    """A compiled batch: `run(batch) -> BatchResult` (what `batch_runner` and
+    `bogie_jax.queued_batch.queued_runner` return).
 
-    def executable(args):
-        leaves, treedef = jax.tree.flatten(args)
-        key = (treedef, tuple((x.shape, x.dtype, x.weak_type) for x in leaves))
-        if key not in compiled:
-            compiled[key] = jitted.lower(args).compile()
-        return compiled[key]
+    - `run(batch)`: run the batch (compiled on the first call for its signature: structure,
+      shapes and dtypes of the batch's leaves).
+    - `run.compile(batch)`: compile for batches of that signature ahead of time, without running.
+    - `run.program(batch)`: `(jitted, args)`, the jitted program and the batch prepared for it
+      (padded, laid out and placed on the devices): `jitted(*args)` runs it, `jitted.lower(*args)`
+      lowers it (for inspection, e.g. the compile benchmark).
 
-    return executable
+    The programs are kept by JAX's own caches of the jitted function (trace, lowering,
+    compilation), not here: a call after `compile` runs the program compiled ahead.
+    """
+
+    def __init__(self, jitted: Callable, prepare: Callable, finish: Callable):
+        self._jitted = jitted  # jax.jit of the whole (sharded) batch
+        self._prepare = prepare  # batch -> (device args, layout)
+        self._finish = finish  # (program outputs, layout) -> BatchResult
+
+    def program(self, batch) -> tuple[Callable, tuple]:
+        return self._jitted, (self._prepare(batch)[0],)
+
+    def compile(self, batch) -> None:
+        """Compile for batches shaped like `batch` without running (kept for later runs)."""
+        self._jitted.lower(self._prepare(batch)[0]).compile()
+
+    def __call__(self, batch) -> BatchResult:
+        args, layout = self._prepare(batch)
+        return self._finish(self._jitted(args), layout)
 
 
 def batch_runner(
@@ -101,8 +118,8 @@ def batch_runner(
     chunk_size: int | None = None,
     devices=None,
     failure_fn: Callable | None = None,
-) -> Callable:
-    """Compile `fn` (one member -> pytree) into `run(batch) -> BatchResult`.
+) -> BatchRunner:
+    """Compile `fn` (one member -> pytree) into a `BatchRunner`: `run(batch) -> BatchResult`.
 
     **Arguments:**
     - `fn`: pure function of one member of the batch.
@@ -150,11 +167,9 @@ def batch_runner(
         )
         return jax.device_put(chunked, sharding), (n, n_chunks, chunk, total)
 
-    executable = ahead_of_time(sharded)
-
-    def run(batch) -> BatchResult:
-        chunked, (n, n_chunks, chunk, total) = prepare(batch)
-        out, failed = executable(chunked)(chunked)
+    def finish(outputs, layout) -> BatchResult:
+        out, failed = outputs
+        n, n_chunks, chunk, total = layout
 
         def unchunk(x):
             x = x.reshape(n_chunks, n_dev, chunk, *x.shape[2:]).swapaxes(0, 1)
@@ -162,10 +177,4 @@ def batch_runner(
 
         return BatchResult(outputs=jax.tree.map(unchunk, out), failed=unchunk(failed))
 
-    def compile_for(batch) -> None:
-        """Compile the program for batches shaped like `batch` without running it (kept for
-        every later `run` of that shape)."""
-        executable(prepare(batch)[0])
-
-    run.compile = compile_for
-    return run
+    return BatchRunner(sharded, prepare, finish)

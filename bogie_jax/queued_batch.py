@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 from jax.sharding import PartitionSpec
 
-from .batch import BatchResult, _batch_size, _pad, ahead_of_time, member_failed, per_device
+from .batch import BatchResult, BatchRunner, _batch_size, _pad, member_failed, per_device
 
 
 class IterativeMember(eqx.Module):
@@ -104,8 +104,9 @@ def queued_runner(
     devices=None,
     post: Callable | None = None,
     failure_fn: Callable | None = None,
-) -> Callable:
-    """Compile an iterative `member` into `run(batch) -> BatchResult` (as `batch_runner`).
+) -> BatchRunner:
+    """Compile an iterative `member` into a `bogie_jax.batch.BatchRunner`:
+    `run(batch) -> BatchResult` (as `batch_runner`).
 
     **Arguments:**
     - `member`: an `IterativeMember`.
@@ -136,17 +137,9 @@ def queued_runner(
         padded = _pad(batch, math.ceil(n / n_dev) * n_dev)
         return jax.device_put(padded, sharding), n
 
-    executable = ahead_of_time(sharded)
-
-    def run(batch) -> BatchResult:
-        padded, n = prepare(batch)
-        out, failed = executable(padded)(padded)
+    def finish(outputs, n) -> BatchResult:
+        out, failed = outputs
         head = lambda x: x[:n]
         return BatchResult(outputs=jax.tree.map(head, out), failed=head(failed))
 
-    def compile_for(batch) -> None:
-        """Compile for batches shaped like `batch` without running (kept for later runs)."""
-        executable(prepare(batch)[0])
-
-    run.compile = compile_for
-    return run
+    return BatchRunner(sharded, prepare, finish)

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from bogie_jax.batch import BatchRunner
 from bogie_jax.queued_batch import IterativeMember, queued_runner
 
 
@@ -96,10 +97,14 @@ def test_queue_compiles_ahead_and_rejects_bad_lanes():
         output=member.output,
     )
     run = queued_runner(counting, lanes=2)
+    assert isinstance(run, BatchRunner)
     run.compile(jnp.asarray(ARGS))
     n_traced = len(traced)
     assert n_traced > 0
     run(jnp.asarray(ARGS))
     assert len(traced) == n_traced  # the run used the program compiled ahead
+    jitted, args = run.program(jnp.asarray(ARGS))
+    assert "stablehlo.while" in jitted.lower(*args).as_text()  # the queue's one loop
+    assert len(traced) == n_traced
     with pytest.raises(ValueError, match="`lanes` must be >= 1, got 0"):
         queued_runner(member, lanes=0)
