@@ -35,7 +35,16 @@ _EXPORTS = {  # what a notebook needs, by module
         "simulated_annealing",
     ),
     "sensitivity": ("fisher_information", "profile_likelihood", "sensitivity_sobol"),
-    "monitor": ("ToleranceBand", "judge", "trend"),
+    "monitor": (
+        "DEFECT_SCENARIOS",
+        "DefectScenario",
+        "RunSpec",
+        "ToleranceBand",
+        "judge",
+        "monitor",
+        "scenario_measurements",
+        "trend",
+    ),
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_WHERE)

@@ -8,6 +8,11 @@ from ._covariance import (
     covariance_from_jacobian as covariance_from_jacobian,
 )
 from ._jacobian import forward_mode as forward_mode, residual_jacobian as residual_jacobian
+from ._joint import (
+    JointResidualModel as JointResidualModel,
+    joint_residual_model as joint_residual_model,
+    make_joint_objective as make_joint_objective,
+)
 from ._make import make_objective as make_objective
 from ._objective import Objective as Objective, ResidualModel as ResidualModel
 from ._scenario import synthetic_objective as synthetic_objective

@@ -1,5 +1,26 @@
 """Condition monitoring: verdicts per suspension element and trends over dated runs."""
 
+from ._defects import (
+    DEFECT_SCENARIOS as DEFECT_SCENARIOS,
+    FAILED_FLOOR as FAILED_FLOOR,
+    DefectScenario as DefectScenario,
+    RunSpec as RunSpec,
+    as_defect_scenario as as_defect_scenario,
+    scenario_measurements as scenario_measurements,
+)
+from ._elements import (
+    DEFAULT_CANDIDATES as DEFAULT_CANDIDATES,
+    DEFAULT_FAILED_FRACTION as DEFAULT_FAILED_FRACTION,
+    DEFAULT_TOLERANCE as DEFAULT_TOLERANCE,
+    ElementStatus as ElementStatus,
+)
+from ._host_fit import HostFit as HostFit, levenberg_marquardt as levenberg_marquardt
+from ._monitor import NOISE_MODES as NOISE_MODES, monitor as monitor
+from ._result import (
+    FitSummary as FitSummary,
+    MonitorResult as MonitorResult,
+    RunStatus as RunStatus,
+)
 from ._trend import Trend as Trend, trend as trend, two_sided_p_value as two_sided_p_value
 from ._verdict import (
     VERDICTS as VERDICTS,

@@ -1,0 +1,228 @@
+"""What `monitor` judges: candidate elements, their tolerance bands, and the identifiability
+rule that decides, from the Fisher information of the actual runs, which elements are judged
+alone, which only as a group, and which not at all.
+
+Identifiability rule (documented in the README, "Verdict rules"). The Jacobian S of the
+weighted residuals of all runs with respect to ln p of every candidate, at the nominal bogie,
+gives the Cramer-Rao covariance C = (S^T S)^+ of the relative errors (unit-variance residuals:
+the sensors' nominal noise), computed by `bogie_jax.cost.covariance_from_jacobian`.
+
+1. An element is **identifiable alone** when, with every candidate free,
+   - its decision interval is small against its band: z * se_i <= `resolution` * h_i, with
+     se_i = sqrt(C_ii) (relative standard error), h_i the half-width of its healthy band
+     relative to nominal, z = `decision_z(false_alarm_rate, n_candidates)` and `resolution`
+     = 0.5 by default (the interval spans at most half the band, so an element half a band
+     beyond the band's edge is called);
+   - and it is not collinear with another candidate: |corr_ij| <= `max_correlation` (0.98)
+     for every other candidate j (a pair so correlated may trade off far beyond the linear
+     prediction when the true values are away from nominal).
+2. The other elements are grouped by their tied name (`yaw_dampers.left.c` and
+   `yaw_dampers.right.c` -> `yaw_dampers.c`): the group moves as one factor (the column of
+   the group is the sum of its members' columns). With the alone elements and the groups free,
+   a group that passes the same two tests is **identifiable as a group**; its verdict names the
+   group, e.g. `yaw_dampers.c` (all members) or `primary.{1R,2L}.ky` (some members).
+3. Everything else is **not identifiable**: held at its nominal value in the fit.
+"""
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..cost import covariance_from_jacobian
+from ..params import BogieParams, get_parameter, resolve_parameter
+from ._verdict import ToleranceBand
+
+
+DEFAULT_CANDIDATES = (
+    "yaw_dampers.left.c",
+    "yaw_dampers.right.c",
+    *(f"primary.{a}.{f}" for f in ("cz", "kz", "ky") for a in ("1L", "1R", "2L", "2R")),
+    "secondary.left.cy",
+    "secondary.right.cy",
+)
+"""The per-element suspension parameters a maintenance engineer asks about."""
+DEFAULT_TOLERANCE = 0.2  # healthy band: nominal * (1 -+ 0.2)
+DEFAULT_FAILED_FRACTION = 0.25  # failed below 25 % of nominal
+RESOLUTION = 0.5
+MAX_CORRELATION = 0.98
+
+
+@dataclasses.dataclass(frozen=True)
+class Coordinate:
+    """One fitted coordinate: an element, or a group of elements moving by one factor.
+
+    `name`: element name or group name; `members`: candidate indices; `nominal` [unit]: the
+    mean nominal value of the members (the estimate is `nominal * exp(phi)`); `unit`; `band`.
+    """
+
+    name: str
+    members: tuple[int, ...]
+    nominal: float
+    unit: str
+    band: ToleranceBand
+
+
+@dataclasses.dataclass(frozen=True)
+class ElementStatus:
+    """Identifiability of one candidate at the nominal point.
+
+    - `name`; `status`: `"alone"`, `"group"` or `"none"`; `coordinate`: the name of the
+      verdict that covers it (itself, its group, or itself when not identifiable);
+    - `relative_std_error`: se_i of the rule (every candidate free); `limit`: the largest se_i
+      the rule accepts; `max_correlation` with another candidate, and that candidate's name.
+    """
+
+    name: str
+    status: str
+    coordinate: str
+    relative_std_error: float
+    limit: float
+    max_correlation: float
+    most_correlated: str
+
+    def to_dict(self) -> dict:
+        return {k: _json(v) for k, v in dataclasses.asdict(self).items()}
+
+
+def _json(x):
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x
+
+
+def check_candidates(params: BogieParams, candidates) -> tuple[str, ...]:
+    """Candidate names, resolved (unknown names raise `ValueError`), unique, positive."""
+    names = DEFAULT_CANDIDATES if candidates is None else tuple(candidates)
+    if isinstance(candidates, str):
+        names = (candidates,)
+    if not names:
+        raise ValueError("`candidates` is empty: give at least one element name")
+    dups = sorted({n for n in names if names.count(n) > 1})
+    if dups:
+        raise ValueError(f"`candidates` repeats {', '.join(dups)}")
+    for name in names:
+        resolve_parameter(params, name, " in `candidates`")
+    return names
+
+
+def tied_group(params: BogieParams, name: str) -> str:
+    """The tied name of an element (`yaw_dampers.c` for `yaw_dampers.left.c`), else `name`."""
+    where = resolve_parameter(params, name)
+    return where.tied_name if where.element is not None else name
+
+
+def element_band(
+    name: str, nominal: float, unit: str, band, tied: str | None = None
+) -> ToleranceBand:
+    """The `ToleranceBand` of element or group `name` (see `monitor`'s `band` argument): from a
+    mapping by `name`, else by its `tied` group name; a number is a relative half-width."""
+    if isinstance(band, Mapping):
+        given = band.get(name)
+        band = band.get(tied) if given is None and tied is not None else given
+    if band is None:
+        band = DEFAULT_TOLERANCE
+    if isinstance(band, ToleranceBand):
+        return band
+    try:
+        return ToleranceBand.relative(
+            nominal, float(band), unit=unit, failed_fraction=DEFAULT_FAILED_FRACTION
+        )
+    except (TypeError, ValueError) as e:
+        raise ValueError(
+            f"`band` of `{name}` = {band!r}: {e} (a relative half-width, or a ToleranceBand)"
+        ) from None
+
+
+def nominal_values(params: BogieParams, names) -> np.ndarray:
+    return np.array([float(np.asarray(get_parameter(params, n))) for n in names])
+
+
+def group_name(params: BogieParams, members: list[str], tied: str) -> str:
+    """`tied` for all of its elements, else `group.{a,b}.field`."""
+    where = resolve_parameter(params, tied)
+    labels = [resolve_parameter(params, m).spec.elements[resolve_parameter(params, m).element]
+              for m in members]  # fmt: skip
+    if where.is_tied_group and len(labels) == len(where.spec.elements):
+        return tied
+    group, field = tied.rsplit(".", 1)
+    return f"{group}.{{{','.join(labels)}}}.{field}"
+
+
+def _half_width(band: ToleranceBand, nominal: float) -> float:
+    """Half-width of the healthy band relative to `nominal`."""
+    return (band.healthy[1] - band.healthy[0]) / 2 / nominal
+
+
+def _passes(jac, z, half_widths, resolution, max_correlation):
+    cov = covariance_from_jacobian(jac)
+    se = np.asarray(cov.std_errors)
+    corr = np.abs(np.nan_to_num(np.asarray(cov.correlation), nan=1.0))
+    np.fill_diagonal(corr, 0.0)
+    limit = resolution * half_widths / z
+    most = corr.argmax(axis=1) if corr.shape[0] > 1 else np.zeros(1, dtype=int)
+    worst = corr.max(axis=1) if corr.shape[0] > 1 else np.zeros(1)
+    ok = np.isfinite(se) & (se <= limit) & (worst <= max_correlation)
+    return ok, se, limit, worst, most
+
+
+def classify(
+    params: BogieParams,
+    names: tuple[str, ...],
+    jacobian,
+    bands: dict,
+    band_arg,
+    z: float,
+    *,
+    resolution: float = RESOLUTION,
+    max_correlation: float = MAX_CORRELATION,
+) -> tuple[list[Coordinate], list[ElementStatus]]:
+    """The rule of the module docstring on `jacobian` (m, n): dr/d ln p of the candidates
+    `names` at the nominal point. Returns the fitted coordinates and each candidate's status."""
+    jac = np.asarray(jacobian, dtype=float)
+    nominal = nominal_values(params, names)
+    half = np.array(
+        [(bands[n].healthy[1] - bands[n].healthy[0]) / 2 / p for n, p in zip(names, nominal)]
+    )
+    ok, se, limit, worst, most = _passes(jac, z, half, resolution, max_correlation)
+    alone = [i for i in range(len(names)) if ok[i]]
+    grouped: dict[str, list[int]] = {}
+    for i in range(len(names)):
+        if not ok[i]:
+            grouped.setdefault(tied_group(params, names[i]), []).append(i)
+    coords = [
+        Coordinate(names[i], (i,), float(nominal[i]), bands[names[i]].unit, bands[names[i]])
+        for i in alone
+    ]
+    groups = []
+    for tied, members in grouped.items():
+        if len(members) < 2:
+            continue
+        gname = group_name(params, [names[i] for i in members], tied)
+        p0 = float(np.mean(nominal[members]))
+        unit = bands[names[members[0]]].unit
+        band = element_band(gname, p0, unit, band_arg, tied)
+        groups.append(Coordinate(gname, tuple(members), p0, unit, band))
+    status = {i: ("alone", names[i]) for i in alone}
+    if groups:
+        trial = coords + groups
+        cols = np.stack([jac[:, list(c.members)].sum(axis=1) for c in trial], axis=1)
+        half_g = np.array([_half_width(c.band, c.nominal) for c in trial])
+        ok_g = _passes(cols, z, half_g, resolution, max_correlation)[0]
+        for c, good in zip(groups, ok_g[len(coords) :]):
+            if good:
+                coords.append(c)
+                status.update({i: ("group", c.name) for i in c.members})
+    statuses = [
+        ElementStatus(
+            name=n,
+            status=status.get(i, ("none", n))[0],
+            coordinate=status.get(i, ("none", n))[1],
+            relative_std_error=float(se[i]),
+            limit=float(limit[i]),
+            max_correlation=float(worst[i]),
+            most_correlated=names[int(most[i])] if len(names) > 1 else "",
+        )
+        for i, n in enumerate(names)
+    ]
+    return coords, statuses

@@ -1,0 +1,134 @@
+"""What `monitor` returns: verdicts, the identifiability of every candidate, the fit and the
+runs, with `to_dict()` for `verdicts.json`."""
+
+import dataclasses
+import math
+
+from ._elements import ElementStatus
+from ._verdict import Verdict
+
+
+def _clean(x):
+    """JSON-ready: non-finite floats become `None`, tuples lists, recursively."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if hasattr(x, "item") and getattr(x, "ndim", 1) == 0:
+        return _clean(x.item())
+    return x
+
+
+@dataclasses.dataclass(frozen=True)
+class RunStatus:
+    """One measurement run: `index`, `speed` [m/s], `duration` [s], `track` (description),
+    `used` in the verdicts, `reason` when left out, `residual_rms` of its weighted residuals at
+    the estimate (about 1 when the model explains the run to the sensors' noise)."""
+
+    index: int
+    speed: float
+    duration: float
+    track: str
+    used: bool
+    reason: str
+    residual_rms: float
+
+
+@dataclasses.dataclass(frozen=True)
+class FitSummary:
+    """The joint fit: fitted coordinate `names`, LM `status` (`converged`, `max_steps`,
+    `failed`), `steps`, `evaluations` of the residual Jacobian, `cost` = 1/2 |r|^2,
+    `noise_variance` 2 cost / (m - n), `sigma2` used in the covariance (`monitor`'s `noise`),
+    `rank` and `condition_number` of the Jacobian, `runs_used`."""
+
+    names: tuple[str, ...]
+    status: str
+    steps: int
+    evaluations: int
+    cost: float
+    noise_variance: float
+    sigma2: float
+    rank: int
+    condition_number: float
+    runs_used: int
+
+
+@dataclasses.dataclass(frozen=True)
+class MonitorResult:
+    """Result of `monitor`.
+
+    - `verdicts`: one `Verdict` per judged element or group (groups name their members in
+      `evidence["members"]`), then one per candidate that is not identifiable;
+    - `elements`: the identifiability of every candidate (`ElementStatus`);
+    - `fit`: `FitSummary`; `runs`: `RunStatus` per measurement; `false_alarm_rate`;
+    - `timings` [s]: `first_jacobian_s` (compile and first evaluation of the residual-Jacobian
+      program), `fit_s`, `total_s`.
+    """
+
+    verdicts: tuple[Verdict, ...]
+    elements: tuple[ElementStatus, ...]
+    fit: FitSummary
+    runs: tuple[RunStatus, ...]
+    false_alarm_rate: float
+    timings: dict
+
+    def verdict(self, name: str) -> Verdict:
+        """The verdict covering `name` (an element, or its group's verdict)."""
+        for v in self.verdicts:
+            if v.name == name:
+                return v
+        for s in self.elements:
+            if s.name == name:
+                return self.verdict(s.coordinate)
+        raise KeyError(
+            f"no verdict for {name!r}; verdicts: {', '.join(v.name for v in self.verdicts)}"
+        )
+
+    @property
+    def alarms(self) -> tuple[Verdict, ...]:
+        """The verdicts `degraded` or `failed`."""
+        return tuple(v for v in self.verdicts if v.verdict in ("degraded", "failed"))
+
+    @property
+    def runs_used(self) -> int:
+        return sum(r.used for r in self.runs)
+
+    def table(self) -> str:
+        """The verdicts as a plain-text table."""
+        rows = [f"{'element':28s} {'verdict':17s} {'estimate':>12s} {'95 % interval':>27s} unit"]
+        for v in self.verdicts:
+            if v.verdict == "not identifiable" and not math.isfinite(v.std_error):
+                est, ci = "-", "-"
+            else:
+                est, ci = f"{v.estimate:12.5g}", f"[{v.ci95[0]:.5g}, {v.ci95[1]:.5g}]"
+            rows.append(f"{v.name:28s} {v.verdict:17s} {est:>12s} {ci:>27s} {v.band.unit}")
+        left = [r for r in self.runs if not r.used]
+        if left:
+            rows.append(
+                f"judged on {self.runs_used} of {len(self.runs)} runs; left out: "
+                + "; ".join(f"run {r.index} ({r.reason})" for r in left)
+            )
+        return "\n".join(rows)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: `verdicts` (name, verdict, estimate, std_error, ci95, tolerance_band,
+        unit, evidence; `None` for values the data do not determine), `elements`, `fit`,
+        `runs`, `false_alarm_rate`, `timings`."""
+        verdicts = []
+        for v in self.verdicts:
+            d = v.to_dict()
+            if not math.isfinite(v.std_error):
+                d["estimate"], d["std_error"], d["ci95"] = None, None, None
+            verdicts.append(d)
+        return _clean(
+            {
+                "verdicts": verdicts,
+                "elements": [s.to_dict() for s in self.elements],
+                "fit": dataclasses.asdict(self.fit),
+                "runs": [dataclasses.asdict(r) for r in self.runs],
+                "false_alarm_rate": self.false_alarm_rate,
+                "timings": self.timings,
+            }
+        )
