@@ -183,8 +183,7 @@ def _data_problem(args, names):
         names,
         bounds=tolerance_bounds(params, names, args.band),
         stepsize_controller=dfx.PIDController(rtol=args.rtol, atol=1e-3 * args.rtol),
-        adjoint=dfx.ForwardMode(),
-    )
+    )  # default adjoint: the fits switch the objective to forward mode themselves
     return objective, None, f"data {args.data} (track {reference.describe()})"
 
 

@@ -20,6 +20,7 @@ import optimistix as optx
 from ..queued_batch import IterativeMember, queued_runner
 from ._householder import HouseholderQR
 from ._local import LeastSquaresMethod, LocalOutput
+from ._problem import is_successful
 
 
 def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int):
@@ -122,5 +123,5 @@ def queued_fits(method, problem_of, max_steps: int, *, lanes: int, devices=None)
         lanes=lanes,
         devices=devices,
         post=cost,
-        failure_fn=lambda out: out[0].result != optx.RESULTS.successful,
+        failure_fn=lambda out: ~is_successful(out[0].result),
     )

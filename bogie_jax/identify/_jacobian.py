@@ -3,15 +3,19 @@
 `jax.linearize` (used by the optimistix least-squares solvers) cannot split an ODE solve's
 `while_loop` into a stored linear map, so every Jacobian-vector product would re-run the whole
 tangent solve and the compiled program would hold several copies of it. `JacobianResiduals`
-gives the residuals a custom JVP: the tangent rule computes the full Jacobian with one solve
-carrying all `n` tangents (`vmap` of `jvp`) and returns `J @ t`. Linearising then stores `J`,
-every further product is a matrix product, and reverse mode (BFGS) transposes that product: one
-forward-mode solve per linearisation, for every method.
+gives the residuals a custom JVP: the tangent rule computes the full Jacobian by the library's one
+Jacobian path, `bogie_jax.cost.residual_jacobian` (one forward-mode solve carrying all `n`
+tangents, `vmap` of `jvp`; the residuals are traced once, primal and tangents together), and
+returns `J @ t`. Linearising then stores `J`, every further product is a matrix product, and
+reverse mode (BFGS) transposes that product: one forward-mode solve per linearisation, for
+every method.
 """
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+
+from ..cost import residual_jacobian
 
 
 @eqx.filter_custom_jvp
@@ -27,12 +31,10 @@ def _residuals_jvp(primals, tangents):
         raise NotImplementedError(
             "JacobianResiduals differentiates with respect to `theta` only, not the objective"
         )
-    fn = lambda th: jnp.ravel(objective.residuals(th, None))
     if t_theta is None:
-        return fn(theta), None
-    basis = jnp.eye(theta.size, dtype=theta.dtype)
-    r, jac_t = jax.vmap(lambda v: jax.jvp(fn, (theta,), (v,)), out_axes=(None, 0))(basis)
-    return r, jac_t.T @ t_theta
+        return jnp.ravel(objective.residuals(theta, None)), None
+    r, jac = residual_jacobian(objective, theta)
+    return r, jac @ t_theta
 
 
 class JacobianResiduals(eqx.Module):

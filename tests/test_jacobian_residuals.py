@@ -1,0 +1,61 @@
+"""`JacobianResiduals`: its custom JVP (through `bogie_jax.cost.residual_jacobian`) gives the
+analytic Jacobian in forward mode, under `jax.linearize` (as the least-squares solvers use it)
+and transposed in reverse mode (BFGS), and traces the residuals once.
+
+Oracle: the hand-written Jacobian of an exponential decay, r_i = a exp(-b t_i) - y_i, in the
+unconstrained coordinates of the box transform (chain rule d r / d theta = d r / d p * d p /
+d theta, with d p / d theta of the element-wise transform, which is not under test).
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from bogie_jax.identify import BoxTransform, JacobianResiduals, as_problem
+
+
+T = jnp.linspace(0.0, 2.0, 9)
+Y = 2.0 * jnp.exp(-0.7 * T)
+TR = BoxTransform([0.5, 0.1], [4.0, 2.0], names=("a", "b"))
+TRACES = []  # one entry per trace of `_Decay.residuals`
+
+
+class _Decay(eqx.Module):
+    """Objective-like: `residuals(theta, args)` and a `selection` (as `cost.Objective`)."""
+
+    selection: BoxTransform
+
+    def residuals(self, theta, args=None):
+        TRACES.append(1)
+        a, b = self.selection.to_physical(theta)
+        return a * jnp.exp(-b * T) - Y
+
+
+def _analytic_jacobian(theta):
+    a, b = np.asarray(TR.to_physical(theta))
+    dp = np.asarray(jax.jvp(TR.to_physical, (theta,), (jnp.ones(2),))[1])  # diagonal transform
+    t = np.asarray(T)
+    dr_dp = np.stack([np.exp(-b * t), -a * t * np.exp(-b * t)], axis=1)
+    return dr_dp * dp
+
+
+def test_custom_jvp_gives_the_analytic_jacobian_in_every_mode():
+    objective = _Decay(TR)
+    residuals = JacobianResiduals(objective)
+    theta = jnp.asarray([0.3, -0.2])
+    expected = _analytic_jacobian(theta)
+    np.testing.assert_allclose(jax.jacfwd(residuals)(theta), expected, rtol=1e-12, atol=1e-14)
+    TRACES.clear()
+    jax.jit(jax.jacfwd(residuals)).lower(theta)
+    assert len(TRACES) == 1  # primal and tangents in one trace of the residuals
+    r, jvp = jax.linearize(residuals, theta)
+    np.testing.assert_allclose(r, objective.residuals(theta), rtol=1e-14)
+    v = jnp.asarray([0.4, -1.3])
+    np.testing.assert_allclose(jvp(v), expected @ np.asarray(v), rtol=1e-12, atol=1e-14)
+    cost = lambda th: 0.5 * jnp.sum(residuals(th) ** 2)
+    r0 = np.asarray(objective.residuals(theta))
+    np.testing.assert_allclose(jax.grad(cost)(theta), expected.T @ r0, rtol=1e-12, atol=1e-14)
+    # as_problem wraps a `selection` objective in JacobianResiduals
+    problem = as_problem(objective)
+    assert isinstance(problem.residuals, JacobianResiduals)
