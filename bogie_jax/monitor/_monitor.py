@@ -9,8 +9,9 @@ Steps (each documented where it is done):
    a run whose simulation fails there is left out (and reported);
 3. the identifiability rule (`_elements.py`): elements alone, groups, or not identifiable;
 4. a Levenberg-Marquardt fit of the identifiable coordinates (the others held at nominal),
-   with the same program; a run whose simulation fails at the estimate is left out and the fit
-   repeated without it;
+   with the same program; a run whose simulation fails at the estimate, or that the joint fit
+   does not explain while it explains another (`_checks.failed_runs`), is left out and the
+   fit repeated without it (same program: the run's residuals are masked);
 5. the covariance of the estimates (`bogie_jax.cost.covariance_from_jacobian` on the final
    Jacobian) and a verdict per coordinate by `judge` (`_verdict.py`), the decision z set by
    `false_alarm_rate` over the judged coordinates (Bonferroni).
@@ -24,77 +25,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..cost import covariance_from_jacobian, make_joint_objective, residual_jacobian
-from ..measure import Measurement
-from ..params import BogieParams, ModelOptions, manchester_benchmark, resolve_parameter
+from ..params import BogieParams, ModelOptions, manchester_benchmark
 from ..simulate import SolveSettings
-from ._elements import (
-    MAX_CORRELATION,
-    RESOLUTION,
-    check_candidates,
-    classify,
-    element_band,
-    nominal_values,
-    tied_group,
-)
+from ._checks import RUN_MISFIT, check_inputs, failed_runs, tolerance_bands
+from ._elements import MAX_CORRELATION, RESOLUTION, check_candidates, classify
 from ._host_fit import levenberg_marquardt
 from ._result import FitSummary, MonitorResult, RunStatus
-from ._verdict import ToleranceBand, check_false_alarm_rate, decision_z, judge
+from ._verdict import check_false_alarm_rate, decision_z, judge
 
 
 NOISE_MODES = ("max", "nominal", "estimated")
 _JACOBIAN = eqx.filter_jit(residual_jacobian)
-
-
-def _check_inputs(measurements, tracks):
-    if isinstance(measurements, Measurement):
-        measurements = (measurements,)
-    measurements = tuple(measurements)
-    if not measurements:
-        raise ValueError("`measurements` is empty: give at least one measurement run")
-    for k, m in enumerate(measurements):
-        if not isinstance(m, Measurement):
-            raise TypeError(f"`measurements[{k}]` must be a Measurement, got {type(m).__name__}")
-    first = measurements[0]
-    for k, m in enumerate(measurements[1:], start=1):
-        if m.layout != first.layout or m.channels != first.channels:
-            raise ValueError(
-                f"`measurements` mix sensor layouts: run {k} has channels "
-                f"{', '.join(m.channels)} with layout {m.layout[:80]!r}..., run 0 has "
-                f"{', '.join(first.channels)} with layout {first.layout[:80]!r}...; monitor one "
-                "bogie layout per call"
-            )
-    if tracks is None:
-        tracks = []
-        for k, m in enumerate(measurements):
-            if m.track is None or m.track.file is not None:
-                raise ValueError(
-                    f"`tracks` is None and measurement {k} has track reference {m.track!r}: pass "
-                    "the tracks (bogie_jax.io.load_track reads a track file)"
-                )
-            tracks.append(m.track.build())
-    tracks = tuple(tracks)
-    if len(tracks) != len(measurements):
-        raise ValueError(
-            f"`tracks` has {len(tracks)} entries for {len(measurements)} measurements: give one "
-            "track per run, in the same order"
-        )
-    return measurements, tracks
-
-
-def _bands(params, names, band):
-    if isinstance(band, ToleranceBand) and len(names) > 1:
-        raise ValueError(
-            "`band` is one ToleranceBand for several candidates of different units: give a "
-            "mapping {name: ToleranceBand or relative half-width} or one relative half-width"
-        )
-    nominal = nominal_values(params, names)
-    bad = [f"{n} = {p:g}" for n, p in zip(names, nominal) if not p > 0]
-    if bad:
-        raise ValueError(f"candidates need nominal values > 0 (fitted in ln p): {', '.join(bad)}")
-    return {
-        n: element_band(n, p, resolve_parameter(params, n).spec.unit, band, tied_group(params, n))
-        for n, p in zip(names, nominal)
-    }
 
 
 def monitor(
@@ -109,6 +50,7 @@ def monitor(
     resolution: float = RESOLUTION,
     max_correlation: float = MAX_CORRELATION,
     max_steps: int = 30,
+    run_misfit: float = RUN_MISFIT,
     options: ModelOptions = ModelOptions(),
     settings: SolveSettings | None = None,
     weights=None,
@@ -134,8 +76,12 @@ def monitor(
       larger of both: never more confident than the sensors allow, wider when the fit leaves
       more than noise).
     - `resolution`, `max_correlation`: the identifiability rule (`_elements.py`).
-    - `max_steps`: Levenberg-Marquardt steps; `options`, `settings`, `weights`: as
-      `make_objective`; `progress`: a callable taking one line of text, or `None`.
+    - `max_steps`: Levenberg-Marquardt steps; `run_misfit`: the rule that leaves a run out
+      after the fit (`_checks.failed_runs`: a run whose simulation fails, or whose residuals
+      stay above sqrt(run_misfit) times the sensors' noise while another run is fitted
+      `run_misfit` times better); the verdicts then say they used fewer runs;
+    - `options`, `settings`, `weights`: as `make_objective`; `progress`: a callable taking one
+      line of text, or `None`.
 
     **Returns:** a `MonitorResult`.
 
@@ -146,7 +92,7 @@ def monitor(
     """
     tic = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
-    measurements, tracks = _check_inputs(measurements, tracks)
+    measurements, tracks = check_inputs(measurements, tracks)
     check_false_alarm_rate(false_alarm_rate)
     if noise not in NOISE_MODES:
         raise ValueError(f"`noise` = {noise!r} must be one of {', '.join(NOISE_MODES)}")
@@ -157,7 +103,7 @@ def monitor(
         )
     params = manchester_benchmark() if params is None else params
     names = check_candidates(params, candidates)
-    bands = _bands(params, names, band)
+    bands = tolerance_bands(params, names, band)
     objective = make_joint_objective(
         measurements, params, tracks, names, options=options, settings=settings, weights=weights
     ).forward_mode()
@@ -175,10 +121,12 @@ def monitor(
 
     # 2. Fisher information at the nominal bogie (the first call compiles)
     say(f"compiling the joint residual Jacobian ({n_runs} runs, {len(names)} candidates)")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     r0, jac0 = evaluate(np.zeros(len(names)))
     timings["first_jacobian_s"] = time.perf_counter() - t0
+    timings["first_jacobian_cpu_s"] = time.process_time() - c0
     slices = objective.residual_model.run_slices
+    n_obs_runs = [int(np.isfinite(np.asarray(m.data)).sum()) for m in measurements]
     for k, sl in enumerate(slices):
         if not (np.all(np.isfinite(r0[sl])) and np.all(np.isfinite(jac0[sl]))):
             active[k], reasons[k] = False, "simulation failed at the nominal bogie"
@@ -213,16 +161,14 @@ def monitor(
     if coords:
         fit = levenberg_marquardt(evaluate_phi, np.zeros(len(coords)), max_steps=max_steps)
         while True:
-            failed = [
-                k for k, sl in enumerate(slices) if active[k] and not np.all(np.isfinite(fit.r[sl]))
-            ]
-            if not failed or len(failed) == active.sum():
+            bad, why = failed_runs(fit.r, slices, active, n_obs_runs, run_misfit)
+            if not bad:
                 break
-            for k in failed:
-                active[k], reasons[k] = False, "simulation failed at the estimate"
-            say(f"run(s) {failed} failed at the estimate: refit without them")
+            for k in bad:
+                active[k], reasons[k] = False, why[k]
+            say(f"left out: {'; '.join(f'run {k} ({why[k]})' for k in bad)}; fitting again")
             objective = with_active(objective)
-            fit = levenberg_marquardt(evaluate_phi, fit.phi * 0, max_steps=max_steps)
+            fit = levenberg_marquardt(evaluate_phi, np.zeros(len(coords)), max_steps=max_steps)
     timings["fit_s"] = time.perf_counter() - t0
 
     # 5. covariance and verdicts
