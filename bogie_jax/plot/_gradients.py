@@ -20,7 +20,7 @@ def plot_gradient_components(records, names, ax=None):
         ax.bar(x + (k - (len(records) - 1) / 2) * width, r["grad"], width, label=r["method"])
     ax.set_yscale("symlog", linthresh=1e-4 * largest)
     ax.set_xticks(x, names, rotation=60, ha="right", fontsize=8)
-    ax.set_ylabel(r"$\partial J / \partial \theta_i$")
+    ax.set_ylabel(r"$\partial J / \partial \theta_i$ [-]")
     ax.axhline(0.0, color="k", lw=0.6)
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(fontsize=8, ncol=3)

@@ -24,7 +24,7 @@ def plot_waterfall(costs, failed=None, *, ax=None, label=None):
     floor = np.finfo(float).tiny
     ax.semilogy(np.arange(1, ok.size + 1), np.maximum(ok, floor), "o-", ms=3, label=label)
     ax.set_xlabel("start (sorted by final cost)")
-    ax.set_ylabel("final cost J")
+    ax.set_ylabel("final cost J [-]")
     ax.set_title(
         f"multistart waterfall: {ok.size} starts"
         + (f", {int(bad.sum())} failed" if bad.any() else "")
