@@ -112,3 +112,9 @@ def back_substitute(r, y):
         return x.at[k].set(s / r[k, k])
 
     return jax.lax.fori_loop(0, n, step, jnp.zeros(n, dtype=r.dtype))
+
+
+def solve_square(a, b):
+    """x with A x = b for a square non-singular A (n, n) by Householder QR (no LAPACK call)."""
+    r, qtb = triangularise(a, b)
+    return back_substitute(r, qtb)

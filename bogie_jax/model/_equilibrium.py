@@ -12,15 +12,16 @@ primary springs, the gravitational stiffness of the conical wheels (paper eq. 2:
 Newton's method (optimistix, with the plain-XLA `HouseholderQR` linear solver, which works inside
 `shard_map` where lineax's `LU` does not) from q = 0; the Jacobian da/dq = -M^-1 K_eff is
 non-singular for a bogie whose every coordinate is held (tested). q0 is differentiable with
-respect to the parameters by the implicit function theorem (`optimistix.ImplicitAdjoint`): dq0/dp =
+respect to the parameters by the implicit function theorem (`jax.lax.custom_root`): dq0/dp =
 -(da/dq)^-1 da/dp, in forward and reverse mode. A symmetric bogie has q0 = 0 (its springs carry
 their design loads at q = 0).
 """
 
+import jax
 import jax.numpy as jnp
 import optimistix as optx
 
-from .._householder import HouseholderQR
+from .._householder import HouseholderQR, solve_square
 from ..params import BogieParams, ModelOptions
 from ..track import perfect_track
 from ._dynamics import accelerations, build_model
@@ -52,18 +53,47 @@ def static_equilibrium_solve(
     throw: bool = True,
 ) -> optx.Solution:
     """The optimistix `Solution` of the static equilibrium (see `static_equilibrium`); its
-    `value` is q0, its `result` says whether Newton converged."""
+    `value` is q0, its `result` says whether Newton converged (`aux` and `state` are `None`).
+
+    The root is found by `optimistix.Newton`; its derivatives come from the implicit function
+    theorem through `jax.lax.custom_root` (dq0/dp = -(da/dq)^-1 da/dp, the linear solves by
+    `HouseholderQR` in `jax.lax.custom_linear_solve`, transposable for reverse mode) rather than
+    optimistix's `ImplicitAdjoint`, whose closure-converted Jacobian operator fails inside
+    `shard_map` with jax 0.10 (its shape structs carry the mesh), where the sharded multistart
+    batch differentiates the equilibrium."""
     model = build_model(params, speed=EQUILIBRIUM_SPEED, track=perfect_track(), options=options)
     solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=HouseholderQR())
-    return optx.root_find(
-        _residual,
-        solver,
+
+    def newton(f, q_init):
+        sol = optx.root_find(lambda q, _: f(q), solver, q_init, max_steps=max_steps, throw=throw)
+        # aux as floats: `custom_root` gives integer aux outputs integer tangents, which JAX
+        # rejects (jax 0.10)
+        ok = jnp.where(sol.result == optx.RESULTS.successful, 1.0, 0.0)
+        return sol.value, (ok, jnp.asarray(sol.stats["num_steps"], dtype=float))
+
+    q0, (ok, steps) = jax.lax.custom_root(
+        lambda q: _residual(q, model),
         jnp.zeros(N_DOF, dtype=float),
-        args=model,
-        max_steps=max_steps,
-        throw=throw,
-        adjoint=optx.ImplicitAdjoint(linear_solver=HouseholderQR()),
+        newton,
+        _tangent_solve,
+        has_aux=True,
     )
+    failure = optx.RESULTS.where(
+        steps >= max_steps, optx.RESULTS.max_steps_reached, optx.RESULTS.nonlinear_divergence
+    )
+    result = optx.RESULTS.where(ok > 0.5, optx.RESULTS.successful, failure)
+    stats = {"num_steps": steps.astype(int), "max_steps": max_steps}
+    return optx.Solution(value=q0, result=result, aux=None, stats=stats, state=None)
+
+
+def _tangent_solve(linear_fn, rhs):
+    """x with linear_fn(x) = rhs for the (10, 10) linearised equilibrium, by Householder QR of
+    its matrix; transposable (reverse mode) through `custom_linear_solve`."""
+
+    def dense(fn, b):
+        return solve_square(jax.jacfwd(fn)(b), b)
+
+    return jax.lax.custom_linear_solve(linear_fn, rhs, dense, transpose_solve=dense)
 
 
 def static_equilibrium(
