@@ -323,7 +323,9 @@ def fit(
     method = as_method(method)
     theta0 = start_theta(problem.transform, start)
     tic = time.perf_counter()
-    out, stats = jax.block_until_ready(_fit_jit(problem, theta0, method, max_steps, bound_tol))
+    # `bound_tol` as an array: a traced input, so another value does not compile again
+    tol = jnp.asarray(bound_tol, dtype=float)
+    out, stats = jax.block_until_ready(_fit_jit(problem, theta0, method, max_steps, tol))
     wall = time.perf_counter() - tic
     result = FitResult(
         names=param_names(problem.transform, theta0.size),
