@@ -1,5 +1,6 @@
 """Parameter identification: local fits, vmapped multistart, simulated annealing and the hybrid."""
 
+from .._householder import HouseholderQR as HouseholderQR
 from ._annealing import (
     AnnealingResult as AnnealingResult,
     AnnealingState as AnnealingState,
@@ -22,7 +23,6 @@ from ._chunked import (
     ChunkProgress as ChunkProgress,
     fit_multistart_chunked as fit_multistart_chunked,
 )
-from ._householder import HouseholderQR as HouseholderQR
 from ._iteration import queue_lanes as queue_lanes, supports_queue as supports_queue
 from ._jacobian import JacobianResiduals as JacobianResiduals
 from ._local import (

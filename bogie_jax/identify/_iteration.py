@@ -17,8 +17,8 @@ import jax
 import jax.numpy as jnp
 import optimistix as optx
 
+from .._householder import HouseholderQR
 from ..queued_batch import IterativeMember, queued_runner
-from ._householder import HouseholderQR
 from ._local import LeastSquaresMethod, LocalOutput
 from ._problem import is_successful
 

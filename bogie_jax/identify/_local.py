@@ -16,8 +16,8 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from .._householder import HouseholderQR
 from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
-from ._householder import HouseholderQR
 from ._problem import as_problem, is_successful, param_names, start_theta, status_name
 
 
