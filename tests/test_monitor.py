@@ -6,6 +6,7 @@ Runs are short (0.5 s at 100 Hz, 30 and 50 m/s); the two noise-free data sets sh
 compiled simulation, and every `monitor` call shares one compiled residual-Jacobian program.
 """
 
+import inspect
 import json
 import math
 
@@ -16,7 +17,12 @@ import numpy as np
 import pytest
 
 from bogie_jax.cost import make_joint_objective, make_objective
-from bogie_jax.measure import Measurement, default_sensor_layout, layout_description
+from bogie_jax.measure import (
+    Measurement,
+    default_sensor_layout,
+    layout_description,
+    synthetic_measurement,
+)
 from bogie_jax.monitor import (
     DEFECT_SCENARIOS,
     FAILED_FLOOR,
@@ -24,6 +30,7 @@ from bogie_jax.monitor import (
     RunSpec,
     ToleranceBand,
     as_defect_scenario,
+    levenberg_marquardt,
     monitor,
     scenario_measurements,
 )
@@ -129,10 +136,42 @@ def test_run_specs_and_measurement_inputs_are_checked():
         RunSpec(speed=30.0, noise_scale=-0.1)
     with pytest.raises(ValueError, match="track"):
         RunSpec(speed=30.0, track="cobblestones")
+    with pytest.raises(ValueError, match="start_position"):
+        RunSpec(speed=30.0, start_position=-1.0)
     with pytest.raises(ValueError, match="key"):
         scenario_measurements("healthy", [RunSpec(speed=30.0)])  # noisy run, no key
     with pytest.raises(ValueError, match="empty"):
         scenario_measurements("healthy", [])
+
+
+# ------------------------------------------------------------------------------------------
+# host Levenberg-Marquardt (numpy problems with known minima)
+# ------------------------------------------------------------------------------------------
+
+
+def test_levenberg_marquardt_reaches_known_minima():
+    def rosenbrock(p):  # minimum at (1, 1), cost 0 (More, Garbow & Hillstrom 1981, problem 1)
+        x, y = p
+        return np.array([10 * (y - x**2), 1 - x]), np.array([[-20 * x, 10.0], [-1.0, 0.0]])
+
+    fit = levenberg_marquardt(rosenbrock, np.array([-1.2, 1.0]), max_steps=200, cost_tol=0.0)
+    assert fit.status == "converged"
+    np.testing.assert_allclose(fit.phi, [1.0, 1.0], atol=1e-8)
+
+    # columns of very different size: amplitude 1e4 e^a and rate e^b of an exponential decay
+    t = np.linspace(0.0, 1.0, 50)
+    truth = np.log([3.0, 0.5])
+    model = lambda p: 1e4 * np.exp(p[0] - np.exp(p[1]) * t)
+    data = model(truth)
+
+    def decay(p):
+        y = model(p)
+        return y - data, np.stack([y, -np.exp(p[1]) * t * y], axis=1)
+
+    fit = levenberg_marquardt(decay, np.zeros(2), cost_tol=0.0)
+    assert fit.status == "converged" and fit.evaluations <= 10
+    np.testing.assert_allclose(fit.phi, truth, atol=1e-8)
+    assert list(fit.costs) == sorted(fit.costs, reverse=True)  # accepted steps only descend
 
 
 # ------------------------------------------------------------------------------------------
@@ -243,6 +282,25 @@ def test_monitor_leaves_out_a_run_the_fit_cannot_explain(healthy, nominal):
     assert all(v.evidence["runs_used"] == "1 of 2 runs" for v in result.verdicts)
     assert "1 of 2 runs" in result.table()
     assert result.alarms == ()
+
+
+@pytest.mark.skipif(
+    "start_position" not in inspect.signature(synthetic_measurement).parameters,
+    reason="synthetic_measurement has no mid-run windows in this version",
+)
+def test_monitor_on_windows_cut_from_moving_runs():
+    """Windows that start 10 m and 5 m into runs from rest (track of the same length as the
+    other tests', so every program is reused): the measurements record where they start, and
+    the objective's lead-in over the known track before them finds the left damper."""
+    runs = (
+        RunSpec(speed=30.0, duration=0.5, seed=3, noise_scale=0.0, start_position=10.0),
+        RunSpec(speed=40.0, duration=0.5, seed=4, noise_scale=0.0, start_position=5.0),
+    )
+    measurements = scenario_measurements("yaw-damper-left-50", runs)
+    assert [float(m.start_position) for m in measurements] == [10.0, 5.0]
+    result = monitor(measurements)
+    assert result.verdict("yaw_dampers.left.c").verdict in ALARMS
+    _non_alarms_are_healthy(result, skip=(result.verdict("yaw_dampers.left.c").name,))
 
 
 def _blank(nominal, channels=None, speed=30.0):

@@ -11,6 +11,7 @@ Scenarios name elements (`primary.1L.kz`, `yaw_dampers.left.c`) or tied groups
 """
 
 import dataclasses
+import inspect
 import math
 import types
 from collections.abc import Mapping, Sequence
@@ -182,8 +183,10 @@ class RunSpec:
     - `track`: spectrum name (`bogie_jax.track.SPECTRA`) and `seed`: the random track
       realisation (`TrackReference`);
     - `noise_scale`: sensor noise as a multiple of each sensor's `noise_std` (0: noise-free);
-    - `start_position` [m]: where on the track the window starts. Only 0 is supported until
-      measurements record their start position (mid-run windows).
+    - `start_position` [m]: track position of the window's first sample. The bogie ran from
+      rest at track position 0 (simulated, not recorded), so a window at `start_position` > 0
+      starts while the bogie is moving; the measurement records `start_position` (needs
+      `synthetic_measurement` with mid-run windows).
     """
 
     speed: float
@@ -208,10 +211,9 @@ class RunSpec:
             raise ValueError(
                 f"RunSpec `track` = {self.track!r} is not a spectrum; valid: {', '.join(SPECTRA)}"
             )
-        if self.start_position != 0:
+        if not (0 <= self.start_position < math.inf):
             raise ValueError(
-                f"RunSpec `start_position` = {self.start_position!r} m: windows that start "
-                "mid-run are not supported yet; use 0"
+                f"RunSpec `start_position` = {self.start_position!r} m must be finite and >= 0"
             )
 
     @property
@@ -233,6 +235,9 @@ def scenario_measurements(
     """Measurements of the bogie of `scenario` (a `DefectScenario`, a name of
     `DEFECT_SCENARIOS` or a mapping `{element: factor}`) for each of `runs`, simulated from the
     hidden true parameters `scenario.true_params(params)` by `synthetic_measurement`.
+
+    A run with `start_position` > 0 is simulated from rest at track position 0 (lead-in =
+    `start_position`) and recorded from `start_position` on.
 
     Every run's track is synthesised with one common length (the longest run plus the
     wheelbase and a 50 m margin), so that every run has track arrays of one shape (one compiled
@@ -259,6 +264,12 @@ def scenario_measurements(
             f"`key` is None but run {noisy[0]} has noise_scale = {runs[noisy[0]].noise_scale!r}: "
             "pass a PRNG key (jax.random.PRNGKey(seed)) or set noise_scale=0"
         )
+    mid_run = [k for k, run in enumerate(runs) if run.start_position > 0]
+    if mid_run and "start_position" not in inspect.signature(synthetic_measurement).parameters:
+        raise ValueError(
+            f"run {mid_run[0]} has start_position = {runs[mid_run[0]].start_position!r} m: this "
+            "version of synthetic_measurement has no mid-run windows; use 0"
+        )
     params = manchester_benchmark() if params is None else params
     truth = scenario.true_params(params)
     wheelbase = 2.0 * float(np.asarray(params.geometry.semi_wheelbase))
@@ -266,6 +277,11 @@ def scenario_measurements(
     out = []
     for k, run in enumerate(runs):
         reference = TrackReference(spectrum=run.track, seed=run.seed, length=length)
+        window = (
+            {"start_position": run.start_position, "lead_in": run.start_position}
+            if run.start_position > 0
+            else {}
+        )
         out.append(
             synthetic_measurement(
                 truth,
@@ -279,6 +295,7 @@ def scenario_measurements(
                 track_reference=reference,
                 options=options,
                 settings=settings,
+                **window,
             )
         )
     return tuple(out)

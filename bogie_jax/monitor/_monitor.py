@@ -234,7 +234,7 @@ def _verdicts(coords, statuses, fit, bands, n_obs, noise, alpha, active, n_runs)
             names=tuple(c.name for c in coords), status=fit.status, steps=fit.steps,
             evaluations=fit.evaluations, cost=fit.cost, noise_variance=s2, sigma2=sigma2,
             rank=int(cov.rank), condition_number=float(cov.condition_number),
-            runs_used=int(active.sum()),
+            runs_used=int(active.sum()), costs=fit.costs,
         )  # fmt: skip
     z = decision_z(alpha, max(len(coords), 1))
     for s in statuses:

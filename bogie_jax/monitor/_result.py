@@ -41,7 +41,8 @@ class FitSummary:
     """The joint fit: fitted coordinate `names`, LM `status` (`converged`, `max_steps`,
     `failed`), `steps`, `evaluations` of the residual Jacobian, `cost` = 1/2 |r|^2,
     `noise_variance` 2 cost / (m - n), `sigma2` used in the covariance (`monitor`'s `noise`),
-    `rank` and `condition_number` of the Jacobian, `runs_used`."""
+    `rank` and `condition_number` of the Jacobian, `runs_used`, `costs` after each accepted
+    step."""
 
     names: tuple[str, ...]
     status: str
@@ -53,6 +54,7 @@ class FitSummary:
     rank: int
     condition_number: float
     runs_used: int
+    costs: tuple[float, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
