@@ -1,5 +1,5 @@
 """The `bogie-jax` command line: one module per command (`simulate`, `critical_speed`, `demo`,
-`gradcheck`, `identify`, `sensitivity`), each with `add_parser(subparsers)` and
+`gradcheck`, `identify`, `sensitivity`, `monitor`), each with `add_parser(subparsers)` and
 `run(args, progress)`.
 
 `main` sets the process up before JAX is imported (every CPU core as a device, the persistent
@@ -23,6 +23,7 @@ COMMANDS = {
     "gradcheck": "gradcheck",
     "identify": "identify",
     "sensitivity": "sensitivity",
+    "monitor": "monitor",
 }
 """Command name -> module of `bogie_jax.cli`."""
 

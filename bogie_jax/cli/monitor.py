@@ -1,0 +1,291 @@
+"""`bogie-jax monitor`: verdicts per suspension element from measurement files, or the trend of
+every element over earlier results.
+
+- `--data FILE...`: measurement files (`bogie_jax.io` CSV or NPZ: each with its speed, track
+  reference and window position) of one bogie, judged jointly by `bogie_jax.monitor.monitor`;
+  writes `verdicts.json` (dated by `--date`), `verdicts.png`, `signals.png` and `report.md`.
+- `--history DIR...`: earlier output directories (or their `verdicts.json` files), in date
+  order; per element `bogie_jax.monitor.trend` -> `trends.json`, `trends.png`, `trends.md`.
+
+Without `--data` or `--history` there is nothing to judge: the command says so (exit code 2)
+and points at `bogie-jax demo`, which runs the built-in case.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..io import (
+    check_date,
+    load_measurement,
+    load_track,
+    load_track_csv,
+    read_verdicts,
+    write_trend_report,
+    write_trends,
+)
+from ..monitor import ToleranceBand, monitor, trend
+from ._common import UsageError, text_table
+from ._monitor_output import fitted_signals, verdict_table, write_outputs
+from ._names import lookup
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "monitor",
+        help="verdicts per suspension element from measurement files, or trends over results",
+        description="--data FILE...: judge every suspension element from measurement files of "
+        "one bogie (fitted jointly) and write verdicts.json, figures and report.md to --out. "
+        "--history DIR...: the trend of every element over earlier outputs (their "
+        "verdicts.json), in date order. One of the two is required; `bogie-jax demo` runs the "
+        "built-in case.",
+    )
+    src = p.add_mutually_exclusive_group()
+    src.add_argument(
+        "--data",
+        nargs="+",
+        metavar="FILE",
+        default=None,
+        help="measurement files FILE.csv or FILE.npz (bogie_jax.io), one per run",
+    )
+    src.add_argument(
+        "--history",
+        nargs="+",
+        metavar="DIR",
+        default=None,
+        help="earlier output directories or verdicts.json files, oldest first",
+    )
+    p.add_argument(
+        "--track",
+        nargs="+",
+        metavar="CSV",
+        default=None,
+        help="--data: measured track files (one for all runs, or one per file; default: each "
+        "file's track reference)",
+    )
+    p.add_argument("--out", default="monitor_out", help="output directory (default monitor_out)")
+    p.add_argument(
+        "--date", default=None, help="--data: date of the runs, YYYY-MM-DD (default today)"
+    )
+    p.add_argument(
+        "--vehicle", default="manchester", help="nominal parameter set (default manchester)"
+    )
+    p.add_argument(
+        "--band",
+        type=float,
+        default=None,
+        help="healthy band, relative half-width (default 0.2: nominal +-20 %%, failed below 25 %%)",
+    )
+    p.add_argument(
+        "--false-alarm-rate",
+        type=float,
+        default=0.05,
+        help="probability of any false alarm on a healthy bogie, or of a drift flag on a steady "
+        "element (default 0.05)",
+    )
+    return p
+
+
+def run(args, progress) -> int:
+    if args.data is None and args.history is None:
+        raise UsageError(
+            "give --data FILE... (measurement files to judge) or --history DIR... (earlier "
+            "outputs to trend); `bogie-jax demo` runs the built-in case"
+        )
+    if not 0 < args.false_alarm_rate < 0.5:
+        raise UsageError(f"`--false-alarm-rate` = {args.false_alarm_rate!r} must lie in (0, 0.5)")
+    if args.history is not None:
+        return run_history(args, progress)
+    return run_data(args, progress)
+
+
+# --- --data ----------------------------------------------------------------------------------
+
+
+def _tracks(args, measurements):
+    if args.track is not None:
+        if len(args.track) not in (1, len(measurements)):
+            raise UsageError(
+                f"`--track` gives {len(args.track)} files for {len(measurements)} data files: "
+                "give one for all runs or one per file"
+            )
+        files = args.track * len(measurements) if len(args.track) == 1 else args.track
+        return [load_track_csv(f) for f in files]
+    tracks = []
+    for f, m in zip(args.data, measurements):
+        if m.track is None:
+            raise UsageError(f"`--data` file {f!r} stores no track reference: give `--track`")
+        tracks.append(load_track(m.track))
+    return tracks
+
+
+def run_data(args, progress) -> int:
+    date = _date(args.date)
+    for f in args.data + (args.track or []):
+        if not Path(f).is_file():
+            raise UsageError(f"file {f!r} does not exist")
+    params = lookup("vehicle", args.vehicle)()
+    try:
+        measurements = [load_measurement(f) for f in args.data]
+        tracks = _tracks(args, measurements)
+    except ValueError as e:  # MeasurementError, a bad track file
+        raise UsageError(str(e)) from None
+    for f, m in zip(args.data, measurements):
+        progress.say(
+            f"{f}: {float(np.asarray(m.speed)):g} m/s, {len(m.times)} samples at "
+            f"{m.sample_rate:g} Hz from {float(np.asarray(m.start_position)):g} m, "
+            f"{len(m.channels)} channels, track {m.track.describe() if m.track else 'given'}"
+        )
+    try:
+        result = monitor(
+            measurements,
+            tracks,
+            params=params,
+            band=args.band,
+            false_alarm_rate=args.false_alarm_rate,
+            progress=lambda line: progress.say(f"  {line}"),
+        )
+    except ValueError as e:  # mixed layouts, a zero-width band, ... (before any compile)
+        raise UsageError(str(e)) from None
+    except RuntimeError as e:  # every run's simulation failed
+        progress.say(f"bogie-jax monitor: {e}")
+        return 1
+    progress.say(verdict_table(result))
+    fitted = fitted_signals(result, measurements, tracks, params, progress)
+    source = "bogie-jax monitor --data " + " ".join(args.data)
+    paths = write_outputs(
+        args.out, result, measurements, fitted, date=date, source=source, notes=[],
+        extra={"data": list(args.data)}, progress=progress,
+    )  # fmt: skip
+    progress.say("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _date(text):
+    try:
+        return check_date(text)
+    except ValueError as e:
+        raise UsageError(str(e).replace("`date`", "`--date`")) from None
+
+
+# --- --history -------------------------------------------------------------------------------
+
+
+def _candidates(record) -> tuple[str, ...]:
+    return tuple(sorted(e["name"] for e in record.get("elements", [])))
+
+
+def history_trends(records, false_alarm_rate):
+    """Per verdict name, the `trend` over the records that estimate it (in the given order:
+    the library refuses unsorted or duplicate dates). Returns `(trends, skipped)`, `trends`
+    a list of `(Trend, unit, band)`, `skipped` the names with fewer than two estimates.
+
+    **Raises:** `ValueError` for mixed layouts (other candidate elements or units) and what
+    `trend` and `ToleranceBand` raise."""
+    first = records[0]
+    for r in records[1:]:
+        if _candidates(r) != _candidates(first):
+            raise ValueError(
+                f"mixed layouts: {r['path']} judges {', '.join(_candidates(r))}; "
+                f"{first['path']} judges {', '.join(_candidates(first))}: trend one bogie layout"
+            )
+    order, series = [], {}
+    for r in records:
+        for row in r["verdicts"]:
+            if row["name"] not in series:
+                order.append(row["name"])
+                series[row["name"]] = []
+            series[row["name"]].append((r["date"], row))
+    trends, skipped = [], []
+    for name in order:
+        rows = series[name]
+        units = {row["unit"] for _, row in rows}
+        if len(units) > 1:
+            raise ValueError(f"mixed layouts: `{name}` has units {', '.join(sorted(units))}")
+        known = [
+            (d, row) for d, row in rows if row["estimate"] is not None and row.get("std_error")
+        ]
+        if len(known) < 2:
+            skipped.append(name)
+            continue
+        b = known[-1][1]["tolerance_band"]
+        band = ToleranceBand(
+            tuple(b["healthy"]), unit=b.get("unit", ""), failed_below=b.get("failed_below"),
+            failed_above=b.get("failed_above"),
+        )  # fmt: skip
+        t = trend(
+            name,
+            [d for d, _ in known],
+            [row["estimate"] for _, row in known],
+            [row["std_error"] for _, row in known],
+            false_alarm_rate=false_alarm_rate,
+            band=band,
+        )
+        trends.append((t, units.pop(), band))
+    return trends, skipped
+
+
+def _trend_figure(path, trends):
+    import matplotlib.pyplot as plt
+
+    from ..plot import plot_trend
+
+    n = len(trends)
+    cols = 2 if n > 1 else 1
+    rows = math.ceil(n / cols)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(6.0 * cols, 2.9 * rows + 0.4), squeeze=False, layout="constrained"
+    )
+    for ax, (t, unit, band) in zip(axes.flat, trends):
+        plot_trend(t, band=band, unit=unit, ax=ax)
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run_history(args, progress) -> int:
+    try:
+        records = [read_verdicts(p) for p in args.history]
+        trends, skipped = history_trends(records, args.false_alarm_rate)
+    except ValueError as e:  # unreadable, unsorted or duplicate dates, mixed layouts, bad band
+        raise UsageError(str(e)) from None
+    if not trends:
+        raise UsageError(
+            f"no element has an estimate in two or more of the {len(records)} results: a trend "
+            "needs at least two"
+        )
+    rows = [("element", "runs", "level", "slope [unit/day]", "se(slope)", "drift", "p", "unit")]
+    for t, unit, _ in trends:
+        rows.append(
+            (
+                t.name, len(t.dates), f"{t.level:.4g}", f"{t.slope:+.3g}",
+                f"{t.slope_std_error:.3g}", "DRIFT" if t.drift else "no", f"{t.p_value:.2g}", unit,
+            )
+        )  # fmt: skip
+    progress.say(
+        f"trends over {len(records)} results ({records[0]['date']} to {records[-1]['date']})"
+    )
+    progress.say(text_table(rows))
+    if skipped:
+        progress.say(f"no trend (fewer than two estimates): {', '.join(skipped)}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    _trend_figure(out / "trends.png", trends)
+    items = [
+        dict(t.to_dict(), unit=unit, times_days=[float(x) for x in t.times])
+        for t, unit, _ in trends
+    ]
+    paths = [
+        write_trends(out / "trends.json", items, false_alarm_rate=args.false_alarm_rate,
+                     sources=[r["path"] for r in records]),
+        out / "trends.png",
+        write_trend_report(
+            out / "trends.md", items, sources=[(r["date"], r["path"]) for r in records],
+            figure="trends.png",
+            notes=[f"no trend (fewer than two estimates): {', '.join(skipped)}"] if skipped else (),
+        ),
+    ]  # fmt: skip
+    progress.say("wrote " + ", ".join(str(p) for p in paths))
+    return 0

@@ -1,0 +1,277 @@
+"""Condition-monitoring files: `verdicts.json` (writer and reader) and the one-page markdown
+reports of a monitoring run and of a trend over dated runs.
+
+`verdicts.json` (UTF-8 JSON, one object):
+
+- `format`: `"bogie_jax.verdicts/1"`; `date`: the run's date, `YYYY-MM-DD` (trends order runs
+  by it); `source`: what was measured (free text);
+- `verdicts`: one row per judged element or group, then one per element that is not
+  identifiable: `name`, `verdict` (`healthy`, `degraded`, `failed`, `not identifiable`),
+  `estimate` and `std_error` [unit], `ci95` `[lo, hi]` [unit] (`null` when the data do not
+  determine the element), `tolerance_band` (`healthy` `[lo, hi]`, `failed_below`,
+  `failed_above`, `unit`), `unit`, `evidence` (decision interval, its z, the reason, runs used);
+- `elements` (identifiability of every candidate), `fit`, `runs`, `false_alarm_rate`,
+  `timings` [s]: as `bogie_jax.monitor.MonitorResult.to_dict`; further keys a caller adds
+  (the demo adds `truth`: the hidden true values).
+
+Non-finite numbers are written as `null`. `read_verdicts` checks the format, the date and the
+rows' keys and raises `ValueError` naming the file and the problem.
+"""
+
+import datetime
+import json
+import math
+import os
+from pathlib import Path
+
+
+VERDICTS_FORMAT = "bogie_jax.verdicts/1"
+VERDICTS_FILE = "verdicts.json"
+VERDICT_KEYS = ("name", "verdict", "estimate", "ci95", "tolerance_band", "unit")
+RULES = 'the README of bogie_jax, section "Verdicts and trends"'
+
+
+def check_date(date) -> str:
+    """`date` (`YYYY-MM-DD` text, `datetime.date` or `None` for today) as ISO text.
+    **Raises:** `ValueError` naming the value."""
+    if date is None:
+        return datetime.date.today().isoformat()
+    if isinstance(date, datetime.date):
+        return date.isoformat()[:10]
+    try:
+        return datetime.date.fromisoformat(str(date)).isoformat()
+    except ValueError:
+        raise ValueError(f"`date` = {date!r} is not a date YYYY-MM-DD") from None
+
+
+def _clean(x):
+    """JSON-ready: non-finite floats become `None`, tuples lists, numpy scalars floats."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if hasattr(x, "item") and getattr(x, "ndim", 1) == 0:
+        return _clean(x.item())
+    return x
+
+
+def verdicts_record(result, *, date=None, source: str = "", **extra) -> dict:
+    """The `verdicts.json` object of `result` (a `MonitorResult`, or its `to_dict()`), dated
+    `date` (default today), with `source` and any `extra` keys."""
+    body = result.to_dict() if hasattr(result, "to_dict") else dict(result)
+    record = {"format": VERDICTS_FORMAT, "date": check_date(date), "source": source}
+    record.update(body)
+    record.update(extra)
+    return _clean(record)
+
+
+def write_verdicts(path, result, *, date=None, source: str = "", **extra) -> Path:
+    """Write `verdicts_record(result, ...)` to `path` (a `.json` file, or a directory: then
+    `path/verdicts.json`); returns the file's path."""
+    path = Path(path)
+    if path.suffix.lower() != ".json":
+        path = path / VERDICTS_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    record = verdicts_record(result, date=date, source=source, **extra)
+    path.write_text(json.dumps(record, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    return path
+
+
+def read_verdicts(path) -> dict:
+    """Read a `verdicts.json` (or a directory holding one, e.g. an earlier `--out`).
+
+    **Raises:** `ValueError` naming the file: missing, not JSON, another format, no or a bad
+    `date`, no `verdicts`, or a row without one of `VERDICT_KEYS`.
+    """
+    path = Path(os.fspath(path))
+    if path.is_dir():
+        path = path / VERDICTS_FILE
+    if not path.is_file():
+        raise ValueError(f"{path}: no such verdicts file (give a verdicts.json or its directory)")
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path}: not a JSON file ({e})") from None
+    if not isinstance(record, dict) or record.get("format") != VERDICTS_FORMAT:
+        got = record.get("format") if isinstance(record, dict) else type(record).__name__
+        raise ValueError(f"{path}: format {got!r} is not {VERDICTS_FORMAT!r}")
+    try:
+        record["date"] = check_date(record.get("date"))
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
+    rows = record.get("verdicts")
+    if not isinstance(rows, list) or not rows:
+        raise ValueError(f"{path}: `verdicts` must be a non-empty list")
+    for k, row in enumerate(rows):
+        missing = [key for key in VERDICT_KEYS if key not in row]
+        if missing:
+            raise ValueError(f"{path}: verdict {k} lacks {', '.join(missing)}")
+    record["path"] = str(path)
+    return record
+
+
+TRENDS_FORMAT = "bogie_jax.trends/1"
+
+
+def write_trends(path, trends, *, false_alarm_rate: float, sources=()) -> Path:
+    """Write per-element trends (`Trend`s or their dictionaries) to the JSON file `path`:
+    `format` `"bogie_jax.trends/1"`, `false_alarm_rate`, `sources` (the verdict files, oldest
+    first) and `trends` (`Trend.to_dict()` rows plus what the caller added, e.g. `unit`)."""
+    path = Path(path)
+    rows = [t.to_dict() if hasattr(t, "to_dict") else dict(t) for t in trends]
+    record = {
+        "format": TRENDS_FORMAT,
+        "false_alarm_rate": false_alarm_rate,
+        "sources": [str(s) for s in sources],
+        "trends": rows,
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(_clean(record), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    return path
+
+
+# --- reports ---------------------------------------------------------------------------------
+
+
+def _g(x, digits: int = 4) -> str:
+    return "-" if x is None else f"{x:.{digits}g}"
+
+
+def _verdict_table(rows) -> list[str]:
+    lines = [
+        "| element | verdict | estimate | 95 % interval | healthy band | failed below | unit |",
+        "|---|---|---:|---|---|---:|---|",
+    ]
+    for r in rows:
+        band = r["tolerance_band"]
+        ci = "-" if r["ci95"] is None else f"[{_g(r['ci95'][0])}, {_g(r['ci95'][1])}]"
+        verdict = r["verdict"] if r["verdict"] == "healthy" else f"**{r['verdict']}**"
+        lines.append(
+            f"| `{r['name']}` | {verdict} | {_g(r['estimate'])} | {ci} | "
+            f"[{_g(band['healthy'][0])}, {_g(band['healthy'][1])}] | "
+            f"{_g(band.get('failed_below'))} | {r['unit']} |"
+        )
+    return lines
+
+
+def _runs_table(runs) -> list[str]:
+    lines = [
+        "| run | speed [m/s] | duration [s] | track | used | residual RMS [noise std] | note |",
+        "|---:|---:|---:|---|---|---:|---|",
+    ]
+    for r in runs:
+        lines.append(
+            f"| {r['index']} | {_g(r['speed'])} | {_g(r['duration'])} | {r['track']} | "
+            f"{'yes' if r['used'] else 'no'} | {_g(r.get('residual_rms'), 3)} | "
+            f"{r.get('reason') or ''} |"
+        )
+    return lines
+
+
+def _rules(record) -> list[str]:
+    alpha = record.get("false_alarm_rate")
+    judged = [r for r in record["verdicts"] if r["estimate"] is not None]
+    z = judged[0]["evidence"].get("z") if judged and "evidence" in judged[0] else None
+    fit = record.get("fit") or {}
+    return [
+        f"- Decision interval: estimate +- z standard errors, z = {_g(z, 3)} "
+        f"(false-alarm rate {_g(alpha, 3)} for the whole bogie, Bonferroni over the "
+        f"{len(judged)} judged elements). `failed`: the interval lies beyond the failure "
+        "limit; `degraded`: outside the healthy band; `not identifiable`: the sensors do not "
+        "determine the element (Fisher information of these runs) or the interval is wider "
+        "than the band; else `healthy`.",
+        "- Identifiable elements are chosen from the Fisher information of these runs at the "
+        "nominal bogie; elements the sensors cannot separate are judged as their group and held "
+        "at nominal otherwise.",
+        f"- Standard errors: residual variance {_g(fit.get('sigma2'), 3)} (the larger of the "
+        f"sensors' nominal noise, 1, and the fit's own estimate {_g(fit.get('noise_variance'), 3)}"
+        "); the 95 % interval is estimate +- 1.96 standard errors.",
+        f"- Full rules: {RULES}.",
+    ]
+
+
+def write_report(
+    path,
+    record: dict,
+    *,
+    figures=(),
+    title: str = "Bogie condition report",
+    notes=(),
+    timing=None,
+) -> Path:
+    """A one-page markdown report of a monitoring run: verdict table, figures, runs, the rules
+    used, timing and `notes`.
+
+    **Arguments:** `record`: a `verdicts.json` object (`verdicts_record`); `figures`: pairs
+    `(caption, file)` embedded as images (file names relative to the report); `notes`: lines
+    of text (e.g. the demo's true values); `timing`: `{label: seconds}` (default: the record's
+    `timings`).
+    **Returns:** the report's path.
+    """
+    path = Path(path)
+    rows = record["verdicts"]
+    alarms = [r for r in rows if r["verdict"] in ("degraded", "failed")]
+    summary = (
+        "No alarm: every identifiable element is healthy."
+        if not alarms
+        else "Alarm: " + "; ".join(f"`{r['name']}` {r['verdict']}" for r in alarms) + "."
+    )
+    lines = [f"# {title}", "", f"Date {record['date']}. {record.get('source', '')}", ""]
+    lines += [f"**{summary}**", "", *_verdict_table(rows), ""]
+    for caption, file in figures:
+        lines += [f"![{caption}]({file})", "", f"*{caption}*", ""]
+    lines += ["## Runs", "", *_runs_table(record.get("runs", [])), ""]
+    lines += ["## Rules used", "", *_rules(record), ""]
+    timing = record.get("timings", {}) if timing is None else timing
+    if timing:
+        parts = [f"{label} {_g(seconds, 3)} s" for label, seconds in timing.items()]
+        lines += ["## Timing", "", "; ".join(parts) + ".", ""]
+    if notes:
+        lines += ["## Notes", "", *[f"- {n}" for n in notes], ""]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path
+
+
+def write_trend_report(path, trends, *, sources=(), figure: str | None = None, notes=()) -> Path:
+    """A markdown report of per-element trends: a table (level, slope, its standard error,
+    drift flag, p-value, days to the band's edge), the figure and the dated inputs.
+
+    **Arguments:** `trends`: `bogie_jax.monitor.Trend`s (or their dictionaries) with an extra
+    `unit` where known; `sources`: `(date, file)` pairs; `figure`: an image file relative to
+    the report; `notes`: lines of text.
+    """
+    path = Path(path)
+    lines = ["# Bogie condition trends", ""]
+    lines += [
+        "| element | runs | level | slope [unit/day] | se(slope) | drift | p | days to band edge "
+        "| unit |",
+        "|---|---:|---:|---:|---:|---|---:|---:|---|",
+    ]
+    for t in trends:
+        d = t.to_dict() if hasattr(t, "to_dict") else dict(t)
+        drift = "**drift**" if d["drift"] else "no"
+        lines.append(
+            f"| `{d['name']}` | {len(d['dates'])} | {_g(d['level'])} | {_g(d['slope_per_day'], 3)} "
+            f"| {_g(d['slope_std_error'], 3)} | {drift} | {_g(d['p_value'], 2)} | "
+            f"{_g(d.get('days_to_band_edge'), 3)} | {d.get('unit', '')} |"
+        )
+    lines.append("")
+    if figure:
+        lines += [f"![trends]({figure})", ""]
+    lines += [
+        "Weighted least squares of the estimates on time (weights 1 / se^2); drift when "
+        "|slope| / se(slope) exceeds the two-sided quantile at the false-alarm rate, se(slope) "
+        "inflated by the Birge ratio when the scatter exceeds the standard errors "
+        f"({RULES}).",
+        "",
+    ]
+    if sources:
+        lines += ["## Inputs", "", *[f"- {date}: `{file}`" for date, file in sources], ""]
+    if notes:
+        lines += [*[f"- {n}" for n in notes], ""]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path

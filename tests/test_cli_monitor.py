@@ -1,0 +1,259 @@
+"""`bogie-jax demo` and `bogie-jax monitor` (issue 19 items 5 and 7 at the command line): the
+demo end to end on short runs, the `verdicts.json` schema and the report, `--history` trends of
+synthetic results, and bad input (one-line errors, exit code 2, before anything is compiled).
+
+The demo runs once (0.5 s per run at 100 Hz, 30 and 50 m/s: the run shapes of
+tests/test_monitor.py); everything else reads and writes small files and compiles nothing.
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bogie_jax.cli import main
+from bogie_jax.io import VERDICTS_FORMAT, read_verdicts, write_verdicts
+from bogie_jax.monitor import DEFECT_SCENARIOS, VERDICTS, ToleranceBand, decision_z, judge
+from bogie_jax.params import get_parameter, manchester_benchmark
+
+
+ALARMS = ("degraded", "failed")
+
+
+def _exit_code(argv):
+    try:
+        return main(argv)
+    except SystemExit as e:  # argparse's own errors
+        return e.code
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    import contextlib
+    import io
+
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        code = main(["demo", "--out", str(out), "--duration", "0.5", "--date", "2026-03-04"])
+    return code, out, text.getvalue()
+
+
+def test_demo_runs_end_to_end_and_prints_progress_and_verdicts(demo):
+    code, out, text = demo
+    assert code == 0
+    assert "compiling the simulation" in text and "compiling the joint residual Jacobian" in text
+    assert "simulated runs 2/2 done" in text
+    assert "element" in text and "verdict" in text and "healthy band" in text
+    assert "process CPU" in text
+    for name in ("verdicts.json", "verdicts.png", "signals.png", "report.md"):
+        assert (out / name).stat().st_size > 500, name
+
+
+def test_demo_verdicts_json_schema(demo):
+    _, out, _ = demo
+    record = json.loads((out / "verdicts.json").read_text())
+    assert record["format"] == VERDICTS_FORMAT and record["date"] == "2026-03-04"
+    rows = record["verdicts"]
+    assert rows
+    nominal = manchester_benchmark()
+    for row in rows:
+        assert {"name", "verdict", "estimate", "ci95", "tolerance_band", "unit"} <= set(row)
+        assert row["verdict"] in VERDICTS
+        band = row["tolerance_band"]
+        lo, hi = band["healthy"]
+        assert lo < hi and band["unit"] == row["unit"]
+        if row["estimate"] is None:
+            assert row["verdict"] == "not identifiable" and row["ci95"] is None
+        else:
+            a, b = row["ci95"]
+            assert a < row["estimate"] < b
+            # the 95 % interval is estimate +- 1.96 standard errors
+            assert b - a == pytest.approx(2 * 1.959964 * row["std_error"], rel=1e-5)
+    # the default bands: nominal +- 20 % of the hand-read nominal value (units from the specs)
+    left = next(r for r in rows if r["name"] in ("yaw_dampers.left.c", "yaw_dampers.c"))
+    assert left["tolerance_band"]["healthy"] == pytest.approx([320e3, 480e3])
+    assert left["unit"] == "N s/m"
+    # the hidden truth the demo records: 50 % of the nominal left damper
+    factor = DEFECT_SCENARIOS["yaw-damper-left-50"].factors["yaw_dampers.left.c"]
+    assert record["truth"] == {
+        "yaw_dampers.left.c": pytest.approx(
+            factor * float(get_parameter(nominal, "yaw_dampers.left.c"))
+        )
+    }
+    assert factor == 0.5
+    assert [r["speed"] for r in record["runs"]] == [30.0, 50.0]
+    assert record["track_record"] == {"noise_mm": 0.3, "offset_m": 0.1}
+    assert read_verdicts(out)["date"] == "2026-03-04"  # the reader accepts its directory
+
+
+def test_demo_report_embeds_the_figures(demo):
+    _, out, _ = demo
+    report = (out / "report.md").read_text()
+    assert "![" in report and "](verdicts.png)" in report and "](signals.png)" in report
+    record = json.loads((out / "verdicts.json").read_text())
+    for row in record["verdicts"]:
+        assert f"`{row['name']}`" in report
+    for heading in ("## Runs", "## Rules used", "## Timing"):
+        assert heading in report
+    assert "false-alarm rate 0.05" in report
+    assert len(report.splitlines()) < 80  # one page
+
+
+# --- --history -------------------------------------------------------------------------------
+
+NAMES = ("yaw_dampers.left.c", "primary.1L.kz")
+UNITS = {"yaw_dampers.left.c": "N s/m", "primary.1L.kz": "N/m"}
+NOMINAL = {"yaw_dampers.left.c": 400e3, "primary.1L.kz": 1.22e6}
+
+
+def _record(estimates, std_errors, *, bands=None):
+    """A `verdicts.json` body of two elements judged by the library's `judge`."""
+    z = decision_z(0.05, len(NAMES))
+    rows = []
+    for name in NAMES:
+        band = (bands or {}).get(name) or ToleranceBand.relative(
+            NOMINAL[name], 0.2, unit=UNITS[name]
+        )
+        rows.append(judge(name, estimates[name], std_errors[name], band, z=z).to_dict())
+    return {
+        "verdicts": rows,
+        "elements": [{"name": n} for n in NAMES],
+        "false_alarm_rate": 0.05,
+    }
+
+
+DATES = ("2026-01-05", "2026-02-05", "2026-03-08")
+DRIFTING = (400e3, 370e3, 341e3)  # the left damper loses about 1 kN s/m a day
+STEADY = (1.220e6, 1.224e6, 1.218e6)  # primary.1L.kz scatters by less than its error
+
+
+def _history(tmp_path, dates=DATES, *, drifting=DRIFTING, steady=STEADY):
+    dirs = []
+    for k, date in enumerate(dates):
+        d = tmp_path / f"run{k}"
+        write_verdicts(
+            d,
+            _record(
+                {"yaw_dampers.left.c": drifting[k], "primary.1L.kz": steady[k]},
+                {"yaw_dampers.left.c": 4e3, "primary.1L.kz": 5e3},
+            ),
+            date=date,
+        )
+        dirs.append(str(d))
+    return dirs
+
+
+def test_history_gives_trends_with_a_drift_flag(tmp_path, capsys):
+    dirs = _history(tmp_path)
+    out = tmp_path / "trend"
+    assert main(["monitor", "--history", *dirs, "--out", str(out)]) == 0
+    record = json.loads((out / "trends.json").read_text())
+    trends = {t["name"]: t for t in record["trends"]}
+    assert set(trends) == set(NAMES)
+    left, kz = trends["yaw_dampers.left.c"], trends["primary.1L.kz"]
+    # oracle: with equal standard errors the weighted slope is the ordinary least-squares slope
+    days = np.array([0.0, 31.0, 62.0])
+    slope = np.polyfit(days, DRIFTING, 1)[0]
+    assert left["slope_per_day"] == pytest.approx(slope, rel=1e-9)
+    assert left["times_days"] == pytest.approx(days)
+    assert left["drift"] is True and left["unit"] == "N s/m"
+    assert kz["drift"] is False
+    assert left["dates"][0].startswith("2026-01-05")
+    assert (out / "trends.png").stat().st_size > 5000
+    report = (out / "trends.md").read_text()
+    assert "](trends.png)" in report and "**drift**" in report
+    text = capsys.readouterr().out
+    assert "DRIFT" in text and "yaw_dampers.left.c" in text
+
+
+@pytest.mark.parametrize(
+    "dates, message",
+    [
+        (("2026-02-05", "2026-01-05", "2026-03-08"), "unsorted date"),
+        (("2026-01-05", "2026-01-05", "2026-03-08"), "duplicate date"),
+        (("2026-01-05",), "at least two"),
+    ],
+)
+def test_history_refuses_bad_dates(tmp_path, capsys, dates, message):
+    dirs = _history(tmp_path, dates)
+    assert _exit_code(["monitor", "--history", *dirs, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_history_refuses_mixed_layouts_and_bad_files(tmp_path, capsys):
+    dirs = _history(tmp_path)
+    other = json.loads((tmp_path / "run2" / "verdicts.json").read_text())
+    other["elements"] = [{"name": "secondary.left.cy"}]
+    (tmp_path / "run2" / "verdicts.json").write_text(json.dumps(other))
+    assert _exit_code(["monitor", "--history", *dirs]) == 2
+    assert "mixed layouts" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "something else"}')
+    assert _exit_code(["monitor", "--history", dirs[0], str(bad)]) == 2
+    assert "is not 'bogie_jax.verdicts/1'" in capsys.readouterr().err
+    assert _exit_code(["monitor", "--history", str(tmp_path / "nowhere")]) == 2
+    assert "no such verdicts file" in capsys.readouterr().err
+
+
+def test_history_refuses_a_zero_width_band(tmp_path, capsys):
+    dirs = _history(tmp_path)
+    record = json.loads((tmp_path / "run2" / "verdicts.json").read_text())
+    record["verdicts"][0]["tolerance_band"]["healthy"] = [4e5, 4e5]
+    (tmp_path / "run2" / "verdicts.json").write_text(json.dumps(record))
+    assert _exit_code(["monitor", "--history", *dirs]) == 2
+    assert "zero width" in capsys.readouterr().err
+
+
+# --- bad input at the command line -------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["monitor"], "give --data FILE..."),
+        (["monitor", "--history"], "expected at least one argument"),
+        (["monitor", "--data"], "expected at least one argument"),
+        (["monitor", "--data", "missing.csv"], "file 'missing.csv' does not exist"),
+        (["monitor", "--data", "a.csv", "--history", "b"], "not allowed with argument"),
+        (["monitor", "--history", "x", "--false-alarm-rate", "0.7"], "must lie in (0, 0.5)"),
+        (["demo", "--speeds", ""], "`--speeds` is empty"),
+        (["demo", "--speeds", "30,fast"], "comma-separated numbers"),
+        (["demo", "--speeds", "30,500"], "speed"),
+        (["demo", "--date", "2026-13-01"], "is not a date YYYY-MM-DD"),
+        (["demo", "--scenario", "squeaky"], "unknown defect scenario"),
+        (["demo", "--track-noise", "-1"], "`--track-noise`"),
+        (["demo", "--duration", "0"], "duration"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
+    assert _exit_code(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_verdicts_reader_rejects_what_it_cannot_use(tmp_path):
+    path = write_verdicts(
+        tmp_path,
+        _record(dict(zip(NAMES, (2e5, 1.2e6))), dict.fromkeys(NAMES, 1e3)),
+        date="2026-01-01",
+    )
+    record = read_verdicts(path)
+    assert [r["name"] for r in record["verdicts"]] == list(NAMES)
+    assert record["verdicts"][0]["verdict"] in ALARMS  # 200 kN s/m +- 1 kN s/m: far below 320
+    body = json.loads(path.read_text())
+    for change, message in [
+        ({"date": "yesterday"}, "not a date"),
+        ({"verdicts": []}, "non-empty list"),
+        ({"verdicts": [{"name": "x"}]}, "lacks verdict, estimate"),
+    ]:
+        path.write_text(json.dumps({**body, **change}))
+        with pytest.raises(ValueError, match=message):
+            read_verdicts(path)
+    path.write_text("{not json")
+    with pytest.raises(ValueError, match="not a JSON file"):
+        read_verdicts(tmp_path)
+    assert math.isfinite(body["verdicts"][0]["std_error"])
