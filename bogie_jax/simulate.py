@@ -6,6 +6,7 @@ import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 
 from ._precision import warn_if_float32
@@ -27,7 +28,11 @@ _DEFAULT_SETTINGS = SolveSettings()
 class Trajectory(eqx.Module):
     """A simulated run.
 
-    - `ts` [s] (n,), `q` (n, 10), `qd` (n, 10), `qdd` (n, 10): coordinates, velocities and
+    - `ts` [s] (n,): the model times of the samples, `start_position / speed + k / sample_rate`:
+      the bogie's reference point is at track position `speed * t` (`positions`), so a run from
+      the start of the track has `ts[0] = 0` and a window starting mid-run has
+      `ts[0] = start_position / speed` (not 0);
+    - `q` (n, 10), `qd` (n, 10), `qdd` (n, 10): coordinates, velocities and
       accelerations (from the equations of motion, not finite differences) in the units of
       `bogie_jax.model.DOF_UNITS` (per s, per s^2);
     - `speed` [m/s];
@@ -50,6 +55,11 @@ class Trajectory(eqx.Module):
         """True where the solve succeeded (array under vmap)."""
         return self.result == dfx.RESULTS.successful
 
+    @property
+    def positions(self):
+        """Track positions [m] (n,) of the bogie's reference point at the samples: speed * ts."""
+        return self.speed * self.ts
+
 
 def check_simulation_inputs(speed, duration, sample_rate, max_steps: int = 100_000) -> None:
     """Raise ValueError naming the argument, its value and the valid range (before any work)."""
@@ -63,6 +73,57 @@ def sample_times(duration: float, sample_rate: float):
     """Sample times 0, 1/fs, ..., up to `duration` [s] (static length)."""
     n = int(math.floor(duration * sample_rate + 1e-9)) + 1
     return jnp.arange(n) / sample_rate
+
+
+def track_end(track: TrackIrregularity):
+    """The track position [m] of the last irregularity sample, or `None` where the track has no
+    end: a perfect track (all samples zero: perfect everywhere) or traced samples."""
+    values = track.values
+    if any(isinstance(x, jax.core.Tracer) for x in (values, track.s0, track.ds)):
+        return None
+    if not np.any(np.asarray(values)):
+        return None
+    return float(track.s0) + float(track.ds) * (track.num_samples - 1)
+
+
+def check_window(start_position, lead_in, *, speed=None, duration=None, track=None) -> None:
+    """Check a measurement window on the track (before anything is compiled).
+
+    - `start_position` [m]: track position of the first sample, finite and >= 0 (track
+      position 0 is where a run from the start begins: the bogie's reference point is at
+      `speed * t`);
+    - `lead_in` [m]: distance simulated before the first sample, in [0, start_position] (the
+      simulation cannot begin before track position 0);
+    - with `speed` [m/s], `duration` [s] and `track` given, a window starting mid-run
+      (`start_position > 0`) must end on the sampled track:
+      `start_position + speed * duration <= track end` (`track_end`; a perfect track has no
+      end). A run from the start of the track may run past its end (perfect beyond), as
+      before.
+
+    Traced values are not checked. **Raises:** `ValueError` naming the argument, its value and
+    the valid range.
+    """
+    check_range("start_position", start_position, 0.0, math.inf, "m")
+    start = _concrete(start_position)
+    check_range("lead_in", lead_in, 0.0, math.inf if start is None else start, "m")
+    if start is None or start <= 0 or track is None or speed is None or duration is None:
+        return
+    end, v, d = track_end(track), _concrete(speed), _concrete(duration)
+    if end is None or v is None or d is None:
+        return
+    window_end = start + v * d
+    if window_end > end * (1 + 1e-12) + 1e-9:
+        raise ValueError(
+            f"the window beyond the track: `start_position` + speed * duration = {start:g} m + "
+            f"{v:g} m/s * {d:g} s = {window_end:g} m lies past the end of the track at {end:g} m;"
+            f" valid: `start_position` in [0, {max(end - v * d, 0.0):g}] m for this track"
+        )
+
+
+def _concrete(x):
+    if isinstance(x, jax.core.Tracer):
+        return None
+    return float(np.asarray(x))
 
 
 def sample_accelerations(model, ts, q, qd):
@@ -86,6 +147,8 @@ def simulate(
     speed,
     duration: float,
     sample_rate: float = 200.0,
+    start_position=0.0,
+    lead_in=0.0,
     y0=None,
     options: ModelOptions = ModelOptions(),
     settings: SolveSettings | None = None,
@@ -97,12 +160,24 @@ def simulate(
     - `params`: `BogieParams` (SI units).
     - `track`: `TrackIrregularity` (e.g. `synthesise_track(...)` or `perfect_track()`).
     - `speed`: forward speed [m/s], in (0, 150]; may be traced (vmap over speeds).
-    - `duration`: simulated time [s] (static), `sample_rate`: output rate [Hz] (static).
-    - `y0`: initial state (q, q_dot) (20,); default `None`: at rest in the static equilibrium
-      of `params`, (q0, 0) with q0 = `bogie_jax.model.static_equilibrium(params)` (zeros for a
-      symmetric bogie), computed inside this function so that it follows traced parameters
-      (differentiably). If its Newton solve fails, `Trajectory.result` says so (with
-      `throw=False`; with `throw=True` it raises).
+    - `duration`: time [s] from the first to the last sample (static), `sample_rate`: output
+      rate [Hz] (static): `floor(duration * sample_rate) + 1` samples.
+    - `start_position` [m]: track position of the bogie's reference point at the first sample,
+      >= 0 (default 0: the old run from the start of the track); may be traced (one
+      compilation for every window of the same length). The bogie is at track position
+      `speed * t`, so the samples are at t_k = start_position / speed + k / sample_rate
+      (`Trajectory.ts`).
+    - `lead_in` [m]: distance run before the first sample, in [0, start_position] (default 0):
+      the integration starts at t0 = (start_position - lead_in) / speed from `y0` and only
+      the samples inside the window are saved. A window cut out of a run that was already
+      moving needs a lead-in long enough for the start transient to decay
+      (`bogie_jax.cost.default_lead_in`). May be traced.
+    - `y0`: initial state (q, q_dot) (20,) at the start of the lead-in; default `None`: at rest
+      in the static equilibrium of `params`, (q0, 0) with q0 =
+      `bogie_jax.model.static_equilibrium(params)` (zeros for a symmetric bogie), computed
+      inside this function so that it follows traced parameters (differentiably). If its
+      Newton solve fails, `Trajectory.result` says so (with `throw=False`; with `throw=True`
+      it raises).
     - `options`: `ModelOptions` (nonlinear model options).
     - `settings`: `SolveSettings` (solver, step-size controller, adjoint, `max_steps`, `dt0`,
       `throw`; default `SolveSettings()`). Use `settings.forward_mode()` for `jax.jacfwd`,
@@ -110,11 +185,19 @@ def simulate(
     - `solve_options`: shorthand for single fields of `settings` (`max_steps=...`, ...).
 
     **Returns:** a `Trajectory`.
+
+    **Raises:** `ValueError` naming the argument, its value and the valid range for a speed,
+    duration, sample rate, start position or lead-in out of range, or a window starting
+    mid-run that ends past the track (`check_window`), before anything is compiled.
     """
     settings = resolve_settings(settings, _DEFAULT_SETTINGS, **solve_options)
     check_simulation_inputs(speed, duration, sample_rate, settings.max_steps)
+    check_window(start_position, lead_in, speed=speed, duration=duration, track=track)
     warn_if_float32()
-    ts = sample_times(duration, sample_rate)
+    speed_ = jnp.asarray(speed, dtype=float)
+    first = jnp.asarray(start_position, dtype=float) / speed_  # [s] model time of sample 0
+    ts = first + sample_times(duration, sample_rate)
+    t0 = ts[0] - jnp.asarray(lead_in, dtype=float) / speed_  # <= ts[0] by construction
     model = build_model(params, speed=speed, track=track, options=options)
     rest = None
     if y0 is None:
@@ -123,7 +206,7 @@ def simulate(
     solution = dfx.diffeqsolve(
         dfx.ODETerm(vector_field),
         settings.solver,
-        t0=0.0,
+        t0=t0,
         t1=ts[-1],
         dt0=settings.dt0,
         y0=jnp.asarray(y0, dtype=float),

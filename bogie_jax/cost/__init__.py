@@ -13,6 +13,12 @@ from ._joint import (
     joint_residual_model as joint_residual_model,
     make_joint_objective as make_joint_objective,
 )
+from ._lead_in import (
+    DEFAULT_DECAY as DEFAULT_DECAY,
+    default_lead_in as default_lead_in,
+    slowest_decay_rate as slowest_decay_rate,
+    window_lead_in as window_lead_in,
+)
 from ._make import make_objective as make_objective
 from ._objective import Objective as Objective, ResidualModel as ResidualModel
 from ._scenario import synthetic_objective as synthetic_objective

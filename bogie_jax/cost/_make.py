@@ -9,8 +9,9 @@ from ..measure import Measurement, MeasurementError
 from ..measure._layout import check_sensor_names
 from ..measure._measurement import check_channels_in_layout
 from ..params import BogieParams, ModelOptions
-from ..simulate import SolveSettings, sample_times
+from ..simulate import SolveSettings, check_window, sample_times
 from ..track import TrackIrregularity
+from ._lead_in import window_lead_in
 from ._objective import Objective, ResidualModel
 from ._selection import select_parameters
 
@@ -27,17 +28,28 @@ def make_objective(
     options: ModelOptions = ModelOptions(),
     settings: SolveSettings | None = None,
     y0=None,
+    lead_in=None,
     **solve_options,
 ) -> Objective:
     """The objective J(theta) of paper eq. 12 for `measurement`, over the parameters `names`.
 
     **Arguments:**
-    - `measurement`: a `Measurement` sampled at t = 0, 1/f_s, ... (the run starts at rest at
-      t = 0 unless `y0` is given); its `speed` is the run's speed.
-    - `y0`: the initial state (20,); default `None`: at rest in the static equilibrium of the
-      parameters being evaluated, (q0(p(theta)), 0), computed inside the objective so that it
-      follows theta (differentiably, `bogie_jax.model.static_equilibrium`); zeros for a
-      symmetric bogie.
+    - `measurement`: a `Measurement` sampled uniformly (its `times` may start anywhere: only
+      the spacing 1/f_s counts, the model samples at k / f_s after the first sample); its
+      `speed` is the run's speed and its `start_position` [m] the track position of its first
+      sample (0: the run starts there, at rest unless `y0` is given).
+    - `lead_in` [m]: distance over the known track simulated before the first sample, in
+      [0, start_position]; the residuals compare only the samples inside the window. Default
+      `None`: 0 for a window at the start of the track (`start_position` = 0, the old
+      behaviour), otherwise `min(default_lead_in(params, speed), start_position)`: long
+      enough for the start transient to decay by 1e-3 (`bogie_jax.cost.default_lead_in`,
+      from the slowest decay rate of the linearised base `params` at the run's speed),
+      clipped to the track before the window. `lead_in=0` with `start_position` > 0 starts at
+      rest at the first sample (biased: the real bogie was moving there).
+    - `y0`: the initial state (20,) at the start of the lead-in; default `None`: at rest in the
+      static equilibrium of the parameters being evaluated, (q0(p(theta)), 0), computed inside
+      the objective so that it follows theta (differentiably,
+      `bogie_jax.model.static_equilibrium`); zeros for a symmetric bogie.
     - `params`: base parameters: nominal values of the selected parameters (theta = 0) and
       fixed values of the others. `track`: the track of the run.
     - `names`, `bounds`: the selection (see `select_parameters`).
@@ -53,11 +65,19 @@ def make_objective(
       mode by itself). `solve_options`: shorthand for single fields of `settings`
       (`stepsize_controller=...`, `max_steps=...`).
 
-    **Raises:** `ValueError` (`MeasurementError` for the data) naming the problem.
+    **Raises:** `ValueError` (`MeasurementError` for the data) naming the problem: among
+    others a `lead_in` < 0, longer than the track before the window (> `start_position`) or
+    not finite, and a window starting mid-run that ends past the track (`check_window`), all
+    before anything is compiled.
     """
     settings = resolve_settings(settings, SolveSettings.for_objective(), **solve_options)
     sensors = _matching_sensors(measurement, sensors)
     duration, rate = _check_sampling(measurement)
+    speed = np.asarray(measurement.speed, dtype=float)
+    start = np.asarray(measurement.start_position, dtype=float)
+    given = 0.0 if lead_in is None else lead_in
+    check_window(start, given, speed=speed, duration=duration, track=track)
+    lead = window_lead_in(lead_in, params, speed, start, options=options)
     sqrt_w = np.sqrt(_weights(weights, sensors, measurement.channels))
     data = np.asarray(measurement.data, dtype=float)
     mask = np.isfinite(data)
@@ -66,7 +86,7 @@ def make_objective(
     model = ResidualModel(
         params=params,
         track=track,
-        speed=np.asarray(measurement.speed, dtype=float),
+        speed=speed,
         sensors=sensors,
         data=np.where(mask, data, 0.0),
         mask=mask,
@@ -76,6 +96,8 @@ def make_objective(
         options=options,
         settings=settings,
         y0=None if y0 is None else np.asarray(y0, dtype=float),
+        start_position=start,
+        lead_in=np.asarray(lead, dtype=float),
     )
     return Objective(select_parameters(params, names, bounds=bounds), model)
 
@@ -89,20 +111,21 @@ def _matching_sensors(measurement, sensors) -> tuple:
 
 
 def _check_sampling(measurement) -> tuple[float, float]:
+    """(duration, rate): the model samples at k / f_s after the first sample, k = 0..n-1; the
+    measurement's times relative to their first must be those (uniform spacing)."""
     times = np.asarray(measurement.times, dtype=float)
     rate = measurement.sample_rate
-    expected = np.asarray(sample_times(float(times[-1]), rate))
-    if (
-        abs(times[0]) > 1e-9
-        or expected.shape != times.shape
-        or not np.allclose(expected, times, rtol=0, atol=1e-6 / rate)
+    relative = times - times[0]
+    expected = np.asarray(sample_times(float(relative[-1]), rate))
+    if expected.shape != times.shape or not np.allclose(
+        expected, relative, rtol=0, atol=1e-6 / rate
     ):
         raise MeasurementError(
-            f"the objective simulates from t = 0 at the sample times k / f_s; the measurement "
-            f"starts at t = {times[0]:g} s with {times.size} samples at {rate:g} Hz: shift its "
-            "`times` to start at 0"
+            f"the objective samples at k / f_s after the first sample; the measurement has "
+            f"{times.size} samples from t = {times[0]:g} s to {times[-1]:g} s that are not "
+            f"uniformly spaced at {rate:g} Hz"
         )
-    return float(times[-1]), float(rate)
+    return float(relative[-1]), float(rate)
 
 
 def _weights(weights, sensors, channels) -> np.ndarray:

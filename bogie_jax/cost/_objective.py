@@ -14,6 +14,7 @@ import dataclasses
 import diffrax as dfx
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ..measure import sensor_readings
@@ -24,16 +25,23 @@ from ..track import TrackIrregularity
 from ._selection import ParameterSelection
 
 
+def _as_float(x):
+    """A float array (a tracer or JAX array stays as it is): a traced leaf, never static."""
+    return x if isinstance(x, jnp.ndarray) or hasattr(x, "aval") else np.asarray(x, dtype=float)
+
+
 class ResidualModel(eqx.Module):
     """Weighted residuals r(p) (paper eq. 12) as a function of a full parameter tree p.
 
     Holds the measured data (`data` (n_times, n_channels) with missing samples set to 0 and
     `mask` True where present), `sqrt_weights` (n_channels,) = W^(1/2) [1/channel unit], the run
-    (`track`, `speed` [m/s], `duration` [s], `sample_rate` [Hz], `y0`: a fixed initial state, or
-    `None` for the static equilibrium of the parameters `p` being evaluated, solved inside the
-    traced function), the `sensors` and the
-    `SolveSettings` passed to `simulate` (default `SolveSettings.for_objective()`). Build it
-    through `make_objective`.
+    (`track`, `speed` [m/s], `duration` [s] from the first to the last sample, `sample_rate`
+    [Hz], `start_position` [m]: track position of the first sample, `lead_in` [m]: distance
+    simulated before it, `y0`: a fixed initial state at the start of the lead-in, or `None` for
+    the static equilibrium of the parameters `p` being evaluated, solved inside the traced
+    function), the `sensors` and the `SolveSettings` passed to `simulate` (default
+    `SolveSettings.for_objective()`). `start_position` and `lead_in` are arrays (traced): every
+    window of the same sample count shares one compilation. Build it through `make_objective`.
     """
 
     params: BogieParams
@@ -48,6 +56,8 @@ class ResidualModel(eqx.Module):
     options: ModelOptions = ModelOptions()
     settings: SolveSettings = SolveSettings.for_objective()
     y0: Float[Array, " 20"] | None = None
+    start_position: Float[Array, ""] = eqx.field(default=0.0, converter=_as_float)
+    lead_in: Float[Array, ""] = eqx.field(default=0.0, converter=_as_float)
 
     # Read-only views of `settings` (backward compatibility).
     solver = property(lambda self: self.settings.solver)
@@ -69,6 +79,8 @@ class ResidualModel(eqx.Module):
             speed=self.speed,
             duration=self.duration,
             sample_rate=self.sample_rate,
+            start_position=self.start_position,
+            lead_in=self.lead_in,
             y0=self.y0,
             options=self.options,
             settings=self.settings,

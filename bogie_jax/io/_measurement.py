@@ -3,9 +3,10 @@
 CSV format (UTF-8 text, one sample per row):
 
 ```
-# bogie_jax measurement, format 2
+# bogie_jax measurement, format 3
 # speed_m_s: 50
 # sample_rate_hz: 200
+# start_position_m: 0
 # track: {"spectrum": "erri-low", "seed": 0, "length_m": 200.0, "band_m": [3.0, 70.0], "file": null}
 # note: free text
 # layout: [{"type":"Accelerometer","name":"frame_1L_y",...}]
@@ -15,17 +16,21 @@ time_s,frame_1L_y[m/s^2],frame_1L_z[m/s^2],frame_yaw_rate[rad/s]
 ```
 
 - Lines `# key: value` before the header carry the metadata: `speed_m_s` [m/s] and
-  `sample_rate_hz` [Hz] are required; `track` (one line of JSON, `TrackReference.to_dict`),
-  `layout` (one line of JSON, see `bogie_jax.measure.layout_description`) and `note` (free
-  text) are optional. Other `#` lines and blank lines are ignored.
+  `sample_rate_hz` [Hz] are required; `start_position_m` [m] (track position of the first
+  sample, `Measurement.start_position`; format 3) is optional, 0 when absent (files of formats
+  1 and 2: their records start where the run started); `track` (one line of JSON,
+  `TrackReference.to_dict`), `layout` (one line of JSON, see
+  `bogie_jax.measure.layout_description`) and `note` (free text) are optional. Other `#`
+  lines and blank lines are ignored.
 - Files of format 1 carried the track as free text (e.g. `erri-low seed=0`). It is never parsed:
   such a file loads with `track=None` and the text kept in `note` as `track: <text>`.
 - The header is `time_s` followed by one `name[unit]` column per channel.
 - Each row: the time [s] and one value per channel; `nan` or an empty cell is a missing sample.
 - Times must be strictly increasing and uniformly spaced at `sample_rate_hz`.
 
-The `.npz` holds `times`, `data`, `channels`, `units`, `speed`, `track` (the JSON text, or ""),
-`layout`, `note`, `sample_rate_hz` and `format`. Loading either rejects wrong shapes, unknown
+The `.npz` holds `times`, `data`, `channels`, `units`, `speed`, `start_position` (format 3;
+read as 0 when absent), `track` (the JSON text, or ""), `layout`, `note`, `sample_rate_hz` and
+`format`. Loading either rejects wrong shapes, unknown
 channels (not in the layout, or not among `sensors`), non-monotone times and mismatched sample
 rates with a `MeasurementError` (a `ValueError`) naming the file and the problem.
 """
@@ -44,9 +49,10 @@ from ..measure._measurement import check_channels_in_layout, check_times
 from ..track import TrackReference
 
 
-FORMAT = "bogie_jax.measurement/2"
+FORMAT = "bogie_jax.measurement/3"
 _COLUMN = re.compile(r"^([^\[\],]+)\[([^\[\]]*)\]$")
 _REQUIRED_NPZ = ("times", "data", "channels", "units", "speed")
+_CSV_KEYS = ("speed_m_s", "sample_rate_hz", "start_position_m", "track", "layout", "note")
 
 
 def save_measurement(path, measurement: Measurement) -> Path:
@@ -66,6 +72,7 @@ def save_measurement(path, measurement: Measurement) -> Path:
             channels=np.array(m.channels),
             units=np.array(m.units),
             speed=np.asarray(m.speed, dtype=float),
+            start_position=np.asarray(m.start_position, dtype=float),
             track=np.array(_track_json(m.track)),
             layout=np.array(m.layout),
             note=np.array(m.note),
@@ -74,8 +81,9 @@ def save_measurement(path, measurement: Measurement) -> Path:
         )
         return path
     with open(path, "w", encoding="utf-8") as f:
-        f.write(f"# bogie_jax measurement, format 2\n# speed_m_s: {float(np.asarray(m.speed))!r}\n")
+        f.write(f"# bogie_jax measurement, format 3\n# speed_m_s: {float(np.asarray(m.speed))!r}\n")
         f.write(f"# sample_rate_hz: {m.sample_rate!r}\n")
+        f.write(f"# start_position_m: {float(np.asarray(m.start_position))!r}\n")
         if m.track is not None:
             f.write(f"# track: {_track_json(m.track)}\n")
         if m.layout:
@@ -137,6 +145,7 @@ def _read_npz(name):
             channels=tuple(str(c) for c in channels),
             units=tuple(str(u) for u in units),
             speed=float(speed),
+            start_position=_npz_start_position(z),
             layout=str(z["layout"]) if "layout" in z.files else "",
         )
         fields.update(
@@ -160,11 +169,7 @@ def _read_csv(name):
                 continue
             if text.startswith("#"):
                 key, sep, value = text[1:].partition(":")
-                if (
-                    header is None
-                    and sep
-                    and key.strip() in ("speed_m_s", "sample_rate_hz", "track", "layout", "note")
-                ):
+                if header is None and sep and key.strip() in _CSV_KEYS:
                     meta[key.strip()] = value.strip()
                 continue
             if header is None:
@@ -186,6 +191,7 @@ def _read_csv(name):
         channels=tuple(c for c, _ in header),
         units=tuple(u for _, u in header),
         speed=_number(meta["speed_m_s"], "speed_m_s"),
+        start_position=_number(meta.get("start_position_m", "0"), "start_position_m"),
         layout=meta.get("layout", ""),
         **_track_fields(meta.get("track", ""), meta.get("note", "")),
     )
@@ -193,6 +199,16 @@ def _read_csv(name):
         i = int(np.flatnonzero(~np.isfinite(fields["times"]))[0])
         raise MeasurementError(f"line {lines[i]}: the time must be a finite number")
     return fields, _number(meta["sample_rate_hz"], "sample_rate_hz")
+
+
+def _npz_start_position(z) -> float:
+    """`start_position` [m] of a format-3 file; 0 for older files (records from the start)."""
+    if "start_position" not in z.files:
+        return 0.0
+    value = z["start_position"]
+    if value.shape != ():
+        raise MeasurementError(f"`start_position` must be a scalar, got shape {value.shape}")
+    return float(value)
 
 
 def _track_json(track: TrackReference | None) -> str:

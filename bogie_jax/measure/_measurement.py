@@ -30,6 +30,13 @@ class Measurement(eqx.Module):
     - `speed` [m/s]; `track`: the `TrackReference` of the track run over, or `None` if
       unknown; `layout`: the sensor layout as JSON (`layout_description`), or "";
       `note`: free text (e.g. the track description of a file from before track references).
+    - `start_position` [m]: track position of the bogie's reference point at the first sample
+      (finite, >= 0; default 0: the record starts where the run started, at rest). A record cut
+      out of a run that was already moving starts at `start_position` > 0, and the objective
+      simulates a lead-in over the track before it (`bogie_jax.cost.make_objective`). The
+      bogie moves at `speed`, so sample k lies at `start_position + speed * (times[k] -
+      times[0])`; `times` may start anywhere (only their spacing is used). Like `speed` an
+      array (not static): windows differing only in position share a compilation.
 
     `channels`, `units`, `track`, `layout` and `note` are static metadata: the cost layer reads
     them when it builds an objective and keeps none of them, so measurements differing only in
@@ -44,9 +51,59 @@ class Measurement(eqx.Module):
     track: TrackReference | None = eqx.field(default=None, static=True)
     layout: str = eqx.field(default="", static=True)
     note: str = eqx.field(default="", static=True)
+    start_position: Float[Array, ""] = eqx.field(default=0.0, converter=_as_float)
 
     def __check_init__(self):
         check_measurement(self)
+
+    @property
+    def positions(self):
+        """Track positions [m] (n,) of the samples: start_position + speed (times - times[0])."""
+        t = jnp.asarray(self.times)
+        return self.start_position + self.speed * (t - t[0])
+
+    def window(self, start: float, duration: float) -> "Measurement":
+        """The samples with times in [start, start + duration] [s] (times of this measurement,
+        kept as they are), as a `Measurement` whose `start_position` [m] is the track position
+        of its first sample: `self.start_position + speed * (t_first - times[0])`. Other
+        metadata are kept. Use it to cut a record out of a longer run (`make_objective` then
+        simulates a lead-in before it).
+
+        **Raises:** `MeasurementError` naming `start` or `duration`, the value and the valid
+        range (the window must lie inside the times and hold at least 2 samples).
+        """
+        times = np.asarray(self.times, dtype=float)
+        t_first, t_last = float(times[0]), float(times[-1])
+        step = (t_last - t_first) / (times.size - 1)
+        tol = SAMPLE_RATE_RTOL * step
+        start, duration = float(start), float(duration)
+        if not (np.isfinite(start) and t_first - tol <= start <= t_last - step + tol):
+            raise MeasurementError(
+                f"`start` = {start:g} s is outside the valid range [{t_first:g}, "
+                f"{t_last - step:g}] s of this measurement's times"
+            )
+        if not (np.isfinite(duration) and step - tol <= duration <= t_last - start + tol):
+            raise MeasurementError(
+                f"`duration` = {duration:g} s is outside the valid range [{step:g}, "
+                f"{t_last - start:g}] s (at least 2 samples, inside the times from `start` = "
+                f"{start:g} s)"
+            )
+        keep = (times >= start - tol) & (times <= start + duration + tol)
+        first = int(np.argmax(keep))
+        position = np.asarray(self.start_position, dtype=float) + np.asarray(
+            self.speed, dtype=float
+        ) * (times[first] - t_first)
+        return Measurement(
+            times=times[keep],
+            data=np.asarray(self.data)[keep],
+            channels=self.channels,
+            units=self.units,
+            speed=self.speed,
+            track=self.track,
+            layout=self.layout,
+            note=self.note,
+            start_position=position,
+        )
 
     @property
     def sample_rate(self) -> float:
@@ -85,9 +142,10 @@ def check_measurement(m: Measurement, *, sample_rate: float | None = None) -> No
 
     **Raises:** `MeasurementError` for wrong shapes, names or units, non-finite or non-monotone
     times, a non-uniform sample spacing or one that does not match `sample_rate` [Hz], channels
-    missing from the layout, infinite data or a non-positive speed.
+    missing from the layout, infinite data, a non-positive speed or a negative or non-finite
+    `start_position`.
     """
-    if not all(_concrete(x) for x in (m.times, m.data, m.speed)):
+    if not all(_concrete(x) for x in (m.times, m.data, m.speed, m.start_position)):
         return
     times, data = np.asarray(m.times), np.asarray(m.data)
     check_times(times, sample_rate)
@@ -113,6 +171,12 @@ def check_measurement(m: Measurement, *, sample_rate: float | None = None) -> No
     speed = float(np.asarray(m.speed))
     if not (np.isfinite(speed) and speed > 0):
         raise MeasurementError(f"`speed` must be > 0 m/s, got {speed!r}")
+    start = np.asarray(m.start_position)
+    if start.shape != () or not (np.isfinite(start) and start >= 0):
+        raise MeasurementError(
+            f"`start_position` must be a finite scalar >= 0 m (the track position of the first "
+            f"sample), got {start!r}"
+        )
     if m.layout:
         check_channels_in_layout(m.channels, m.units, sensors_from_layout(m.layout))
 

@@ -9,7 +9,13 @@ import numpy as np
 from .._solve_settings import resolve_settings
 from ..model import BogieModel, accelerations, build_model
 from ..params import BogieParams, ModelOptions
-from ..simulate import SolveSettings, Trajectory, simulate
+from ..simulate import (
+    SolveSettings,
+    Trajectory,
+    check_simulation_inputs,
+    check_window,
+    simulate,
+)
 from ..track import TrackIrregularity, TrackReference
 from ._layout import check_sensor_names, default_sensor_layout, layout_description
 from ._locations import sample_state
@@ -57,10 +63,13 @@ def measure(
 
 
 @eqx.filter_jit
-def _clean_channels(params, track, speed, sensors, duration, sample_rate, options, settings, y0):
+def _clean_channels(params, track, speed, sensors, duration, sample_rate, window, options,
+                    settings, y0):  # fmt: skip
+    start_position, lead_in = window  # arrays: traced, one compilation for every window
     run = simulate(
-        params, track, speed=speed, duration=duration, sample_rate=sample_rate, y0=y0,
-        options=options, settings=settings,
+        params, track, speed=speed, duration=duration, sample_rate=sample_rate,
+        start_position=start_position, lead_in=lead_in, y0=y0, options=options,
+        settings=settings,
     )  # fmt: skip
     return run.ts, measure(run, sensors, params, track, options=options), run.successful
 
@@ -72,6 +81,8 @@ def synthetic_measurement(
     speed: float,
     duration: float,
     sample_rate: float = 200.0,
+    start_position: float = 0.0,
+    lead_in: float = 0.0,
     sensors=None,
     key=None,
     noise_scale: float = 1.0,
@@ -84,7 +95,14 @@ def synthetic_measurement(
     """Simulate `params` on `track` and read `sensors` (default `default_sensor_layout(params)`).
 
     **Arguments:**
-    - `speed` [m/s], `duration` [s], `sample_rate` [Hz]: as in `simulate` (times 0, 1/fs, ...).
+    - `speed` [m/s], `duration` [s], `sample_rate` [Hz]: as in `simulate`.
+    - `start_position` [m], `lead_in` [m]: a window whose first sample is at track position
+      `start_position`, simulated from rest (`y0`) `lead_in` metres earlier (0 <= `lead_in`
+      <= `start_position`; see `simulate`). The defaults (0, 0) give the run from the start of
+      the track. The measurement records `start_position`; its `times` are the model times
+      `start_position / speed + k / sample_rate` (`Trajectory.ts`). A window of a run that
+      started at rest at track position 0 is `lead_in = start_position`, or equally
+      `synthetic_measurement(...).window(t_start, duration)` of a longer run.
     - `key`: PRNG key for additive Gaussian noise of standard deviation
       `noise_scale * sensor.noise_std` per channel; `None` gives noise-free data. Sensor biases
       are always added.
@@ -96,7 +114,8 @@ def synthetic_measurement(
 
     **Returns:** a `Measurement` whose `layout` describes `sensors`.
 
-    **Raises:** `RuntimeError` if the solve fails.
+    **Raises:** `RuntimeError` if the solve fails; `ValueError` for a bad window
+    (`bogie_jax.simulate.check_window`), before anything is compiled.
     """
     if track_reference is not None and not isinstance(track_reference, TrackReference):
         raise TypeError(
@@ -106,9 +125,13 @@ def synthetic_measurement(
     sensors = default_sensor_layout(params) if sensors is None else tuple(sensors)
     layout = layout_description(sensors)
     y0 = None if y0 is None else np.asarray(y0, dtype=float)
+    check_simulation_inputs(speed, duration, sample_rate, settings.max_steps)
+    check_window(start_position, lead_in, speed=speed, duration=duration, track=track)
+    window = (np.asarray(start_position, dtype=float), np.asarray(lead_in, dtype=float))
     ts, clean, ok = _clean_channels(
-        params, track, speed, sensors, duration, sample_rate, options, settings, y0
-    )
+        params, track, np.asarray(speed, dtype=float), sensors, duration, sample_rate, window,
+        options, settings, y0,
+    )  # fmt: skip
     if not bool(ok):
         raise RuntimeError("the simulation for the synthetic measurement failed (see `simulate`)")
     data = np.asarray(clean)
@@ -123,4 +146,5 @@ def synthetic_measurement(
         speed=float(speed),
         track=track_reference,
         layout=layout,
+        start_position=float(start_position),
     )

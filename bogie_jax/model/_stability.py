@@ -1,13 +1,20 @@
 """Linear stability: eigenvalues of the Jacobian of the vector field at the static equilibrium
-on a perfect track, swept over speed; the linear critical (hunting) speed and frequency."""
+on a perfect track, swept over speed; the linear critical (hunting) speed and frequency.
+
+The linearisation point is the rest state (q0, 0) of the parameters (`static_equilibrium`):
+q0 = 0 for a symmetric bogie, but an asymmetric one (a soft spring, a failed damper) rests with
+the frame heaved, rolled and pitched, and its small-motion dynamics are those about q0.
+"""
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import optimistix as optx
 
 from ..params import BogieParams, ModelOptions
 from ..track import perfect_track
 from ._dynamics import build_model, vector_field
+from ._equilibrium import static_equilibrium_solve
 from ._layout import N_DOF
 
 
@@ -31,9 +38,18 @@ class CriticalSpeed(eqx.Module):
 
 
 def system_matrix(params: BogieParams, speed, options: ModelOptions = ModelOptions()):
-    """Jacobian d(dy/dt)/dy (20, 20) at y = 0 on a perfect track (by `jax.jacfwd`)."""
+    """Jacobian A = d(dy/dt)/dy (20, 20) [1/s, ...] at the rest state y = (q0, 0) on a perfect
+    track at `speed` [m/s] (by `jax.jacfwd`), q0 the static equilibrium of `params`
+    (`static_equilibrium`; zeros for a symmetric bogie). Small motions about the rest state
+    obey d(dy)/dt = A dy. Where the equilibrium's Newton solve fails (no raise: works inside
+    `vmap`), e.g. for a test bogie with a coordinate held by nothing (a singular stiffness, a
+    zero eigenvalue), A is taken at q = 0, the rest state of a symmetric bogie."""
+    rest = static_equilibrium_solve(params, options=options, throw=False)
+    ok = (rest.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(rest.value))
+    q0 = jnp.where(ok, rest.value, 0.0)
+    y0 = jnp.concatenate([q0, jnp.zeros(N_DOF, dtype=q0.dtype)])
     model = build_model(params, speed=speed, track=perfect_track(), options=options)
-    return jax.jacfwd(vector_field, argnums=1)(0.0, jnp.zeros(2 * N_DOF), model)
+    return jax.jacfwd(vector_field, argnums=1)(0.0, y0, model)
 
 
 @eqx.filter_jit
