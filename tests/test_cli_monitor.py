@@ -101,6 +101,35 @@ def test_demo_report_embeds_the_figures(demo):
     assert len(report.splitlines()) < 80  # one page
 
 
+def test_monitor_data_replays_the_demo_from_its_files(demo, tmp_path, capsys):
+    """`monitor --data` on the runs and track record the demo wrote (CSV, 17 digits) gives the
+    demo's verdicts; `--history` over both outputs gives a two-point trend per element. (The
+    compiled residual-Jacobian program of the demo is reused: same shapes, same process.)"""
+    _, out, _ = demo
+    data = out / "data"
+    runs = [str(data / f"run{k}.csv") for k in range(2)]
+    tracks = [str(data / f"track{k}.csv") for k in range(2)]
+    again = tmp_path / "again"
+    argv = ["monitor", "--data", *runs, "--track", *tracks, "--out", str(again)]
+    assert main([*argv, "--date", "2026-03-05"]) == 0
+    first = json.loads((out / "verdicts.json").read_text())
+    second = json.loads((again / "verdicts.json").read_text())
+    assert second["date"] == "2026-03-05" and second["data"] == runs
+    assert [r["name"] for r in second["verdicts"]] == [r["name"] for r in first["verdicts"]]
+    for a, b in zip(first["verdicts"], second["verdicts"]):
+        assert a["verdict"] == b["verdict"], a["name"]
+        if a["estimate"] is not None:
+            assert b["estimate"] == pytest.approx(a["estimate"], rel=1e-6), a["name"]
+    assert "](signals.png)" in (again / "report.md").read_text()
+    trend = tmp_path / "trend"
+    assert main(["monitor", "--history", str(out), str(again), "--out", str(trend)]) == 0
+    rows = json.loads((trend / "trends.json").read_text())["trends"]
+    judged = [r["name"] for r in first["verdicts"] if r["estimate"] is not None]
+    assert [r["name"] for r in rows] == judged
+    assert all(len(r["dates"]) == 2 for r in rows)
+    capsys.readouterr()
+
+
 # --- --history -------------------------------------------------------------------------------
 
 NAMES = ("yaw_dampers.left.c", "primary.1L.kz")

@@ -40,6 +40,7 @@ def fitted_signals(result, measurements, tracks, params, progress):
         speed, start = float(np.asarray(m.speed)), float(np.asarray(m.start_position))
         if k == 0:
             progress.compiling("the simulation at the estimate (reused if already compiled)")
+            progress.start_work()
         model = synthetic_measurement(
             at,
             track,
@@ -76,13 +77,15 @@ def verdict_table(result) -> str:
 
 
 def _signal_channels(measurements, n: int) -> list[int]:
-    """Up to `n` channels of different kinds (the first of each unit, then the rest)."""
-    m = measurements[0]
+    """Up to `n` channels of different kinds (first the first channel of each body and
+    direction, e.g. `frame_*_y`, `frame_*_z`, `frame_yaw_rate`, `axlebox_*_y`), then the rest."""
+    names = measurements[0].channels
     first = {}
-    for j, u in enumerate(m.units):
-        first.setdefault(u, j)
+    for j, c in enumerate(names):
+        parts = c.split("_")
+        first.setdefault((parts[0], parts[-1]), j)
     picked = list(first.values())[:n]
-    picked += [j for j in range(len(m.channels)) if j not in picked][: n - len(picked)]
+    picked += [j for j in range(len(names)) if j not in picked][: n - len(picked)]
     return sorted(picked)
 
 

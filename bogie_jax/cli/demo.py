@@ -14,10 +14,11 @@ here from `bogie_jax.track`'s public functions.
 import datetime
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 
-from ..io import check_date
+from ..io import check_date, save_measurement, save_track_csv
 from ..monitor import DEFECT_SCENARIOS, RunSpec, as_defect_scenario, monitor, scenario_measurements
 from ..params import get_parameter, manchester_benchmark
 from ..track import TrackIrregularity, TrackReference
@@ -154,6 +155,33 @@ def _truth(scenario, params) -> dict:
     return {e: float(np.asarray(get_parameter(truth, e))) for e in scenario.elements}
 
 
+def truth_check(result, scenario, params) -> str:
+    """One line comparing the verdicts with the hidden truth of the synthetic data: correct
+    alarms, false alarms, missed damage (the true value outside the healthy band), and how
+    many 95 % intervals hold the true value (a group's truth: its members' mean)."""
+    truth = scenario.true_params(params)
+    correct, false, missed, covered, judged = [], [], [], 0, 0
+    for v in result.verdicts:
+        members = v.evidence.get("members") or [v.name]
+        value = float(np.mean([float(np.asarray(get_parameter(truth, m))) for m in members]))
+        lo, hi = v.band.healthy
+        damaged = not lo <= value <= hi
+        alarm = v.verdict in ("degraded", "failed")
+        if alarm:
+            (correct if damaged else false).append(v.name)
+        elif damaged:
+            missed.append(v.name)
+        if np.isfinite(v.std_error) and v.evidence.get("identifiable") != "no":
+            judged += 1
+            covered += bool(v.ci95[0] <= value <= v.ci95[1])
+    say = lambda names: ", ".join(f"`{n}`" for n in names) or "none"
+    return (
+        f"Against the hidden truth: correct alarms {say(correct)}; false alarms {say(false)}; "
+        f"missed {say(missed)}; the true value lies inside the 95 % interval for {covered} of "
+        f"{judged} judged elements."
+    )
+
+
 def run(args, progress) -> int:
     scenario, runs, date = _check(args)
     params = manchester_benchmark()
@@ -194,10 +222,13 @@ def run(args, progress) -> int:
     progress.say(verdict_table(result))
     fitted = fitted_signals(result, measurements, tracks, params, progress)
     truth = _truth(scenario, params)
+    check = truth_check(result, scenario, params)
+    progress.say(check.replace("`", ""))
     notes = [
         f"Synthetic data: {scenario.name} ({scenario.description}); true values "
         + (", ".join(f"`{k}` = {v:.4g}" for k, v in truth.items()) or "all nominal")
         + "; every other element nominal.",
+        check,
         f"Sensor noise x{args.noise:g} of each sensor's noise std; seed {args.seed}.",
         record_note[0].upper() + record_note[1:] + ".",
         f"Process CPU time {time.process_time():.0f} s (wall {progress.elapsed():.0f} s) up to "
@@ -211,10 +242,21 @@ def run(args, progress) -> int:
     source = (
         f"bogie-jax demo: synthetic runs at {speeds} m/s of a bogie with {scenario.description}"
     )
+    data = Path(args.out) / "data"
+    data.mkdir(parents=True, exist_ok=True)
+    files = [str(save_measurement(data / f"run{k}.csv", m)) for k, m in enumerate(measurements)]
+    records = [str(data / f"track{k}.csv") for k in range(len(tracks))]
+    for path, track in zip(records, tracks):
+        save_track_csv(path, track)
+    notes.append(
+        "The runs and the track record are in `data/`; judge them again from the files with "
+        f"`bogie-jax monitor --data {' '.join(files)} --track {' '.join(records)}`."
+    )
     paths = write_outputs(
         args.out, result, measurements, fitted, date=date, source=source, notes=notes,
         extra=extra, progress=progress,
     )  # fmt: skip
+    progress.say(f"wrote the runs and the track record to {data}/")
     progress.say("wrote " + ", ".join(str(p) for p in paths))
     progress.say(
         f"total {progress.elapsed():.0f} s wall, {time.process_time():.0f} s process CPU "

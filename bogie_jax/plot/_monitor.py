@@ -37,7 +37,9 @@ def plot_verdicts(verdicts, *, ax=None, title: str | None = None):
     elements of different units share one axis.
 
     The healthy band is the shaded span of each row, the failure limit (`failed_below`,
-    `failed_above`) a red tick; markers are coloured by verdict (healthy green, degraded
+    `failed_above`) a red tick, the decision interval of the verdict rule (the evidence's
+    `decision_interval`, wider than the 95 % interval when several elements are judged) a
+    pale bar behind the 95 % error bar; markers are coloured by verdict (healthy green, degraded
     orange, failed red, not identifiable grey: no estimate, the row shows only the band).
 
     **Arguments:** `verdicts`: `Verdict`s or `verdicts.json` rows; `ax`; `title`.
@@ -63,6 +65,12 @@ def plot_verdicts(verdicts, *, ax=None, title: str | None = None):
         if row["estimate"] is not None:
             est = row["estimate"] / ref
             lo95, hi95 = (c / ref for c in row["ci95"])
+            decision = (row.get("evidence") or {}).get("decision_interval")
+            if decision is not None:
+                ax.plot(
+                    [decision[0] / ref, decision[1] / ref], [k, k], color=colour, lw=4,
+                    alpha=0.3, solid_capstyle="butt",
+                )  # fmt: skip
             ax.errorbar(est, k, xerr=[[est - lo95], [hi95 - est]], fmt="o", color=colour, capsize=3)
         ax.annotate(
             row["verdict"], (1.0, k), xycoords=("axes fraction", "data"), xytext=(4, 0),
@@ -70,6 +78,7 @@ def plot_verdicts(verdicts, *, ax=None, title: str | None = None):
         )  # fmt: skip
     ax.plot([], [], color="C3", lw=1.5, label="failure limit")
     ax.errorbar([], [], xerr=[], fmt="o", color="k", capsize=3, label="estimate, 95 % interval")
+    ax.plot([], [], color="k", lw=4, alpha=0.3, label="decision interval (verdict rule)")
     ax.axvline(1.0, color="k", lw=0.6)
     ax.set_yticks(y, [r["name"] for r in rows])
     ax.set_ylim(y.min() - 0.7, y.max() + 0.7)
