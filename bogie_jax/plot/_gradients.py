@@ -45,8 +45,8 @@ def plot_gradient_cost(records, ax=None):
     if ns:  # label the measured n, not the log axis' decades
         ax.set_xticks(ns, [str(n) for n in ns])
         ax.xaxis.set_minor_formatter(plt.NullFormatter())
-    ax.set_xlabel("number of parameters n")
-    ax.set_ylabel("time per gradient / forward solve")
+    ax.set_xlabel("number of parameters n [-]")
+    ax.set_ylabel("time per gradient / forward solve [-]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     return ax

@@ -23,7 +23,7 @@ def plot_waterfall(costs, failed=None, *, ax=None, label=None):
     ok = np.sort(costs[~bad])
     floor = np.finfo(float).tiny
     ax.semilogy(np.arange(1, ok.size + 1), np.maximum(ok, floor), "o-", ms=3, label=label)
-    ax.set_xlabel("start (sorted by final cost)")
+    ax.set_xlabel("start (sorted by final cost) [-]")
     ax.set_ylabel("final cost J [-]")
     ax.set_title(
         f"multistart waterfall: {ok.size} starts"

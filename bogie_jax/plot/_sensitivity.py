@@ -25,7 +25,7 @@ def plot_sobol_indices(indices, ax=None, *, title: str | None = None):
         err = np.abs(np.stack([value - ci[:, 0], ci[:, 1] - value]))
         ax.bar(x + (k - 0.5) * w, value, w, yerr=err, capsize=3, label=label)
     ax.set_xticks(x, names, rotation=30, ha="right")
-    ax.set_ylabel("Sobol index")
+    ax.set_ylabel("Sobol index [-]")
     ax.axhline(0.0, color="k", lw=0.5)
     ax.legend(fontsize=8)
     ax.grid(True, axis="y", alpha=0.3)
@@ -72,7 +72,7 @@ def plot_sweeps(sweeps, ax=None, *, label: str = "cost J", all_names=None):
         if all_names is not None:
             v = v / nominal[list(all_names).index(name)]
         ax.plot(v, outputs[k], marker=".", label=name)
-    ax.set_xlabel("value / nominal" if all_names is not None else "value")
+    ax.set_xlabel("value / nominal [-]" if all_names is not None else "value")
     ax.set_ylabel(label)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
