@@ -104,6 +104,13 @@ def monitor(
     params = manchester_benchmark() if params is None else params
     names = check_candidates(params, candidates)
     bands = tolerance_bands(params, names, band)
+    # throw=False: a failed solve gives infinite residuals for its run (left out, reported)
+    # instead of an error that would stop every run of the vmapped program
+    if settings is not None and not isinstance(settings, SolveSettings):
+        raise TypeError(f"`settings` must be a SolveSettings, got {type(settings).__name__}")
+    settings = (SolveSettings.for_objective() if settings is None else settings).replace(
+        throw=False
+    )
     objective = make_joint_objective(
         measurements, params, tracks, names, options=options, settings=settings, weights=weights
     ).forward_mode()
