@@ -264,6 +264,46 @@ def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
     assert message in err and len(err.splitlines()) == 1, err
 
 
+def _blank_file(path, channels=None, speed=30.0):
+    """A measurement file of zeros (nothing is simulated or compiled)."""
+    from bogie_jax.io import save_measurement
+    from bogie_jax.measure import Measurement, default_sensor_layout, layout_description
+    from bogie_jax.track import TrackReference
+
+    sensors = default_sensor_layout(manchester_benchmark())
+    if channels is not None:
+        sensors = tuple(s for s in sensors if s.name in channels)
+    n = 51
+    m = Measurement(
+        times=np.arange(n) / 100.0,
+        data=np.zeros((n, len(sensors))),
+        channels=[s.name for s in sensors],
+        units=[s.unit for s in sensors],
+        speed=speed,
+        track=TrackReference(spectrum="erri-low", seed=0, length=100.0),
+        layout=layout_description(sensors),
+    )
+    return str(save_measurement(path, m))
+
+
+def test_monitor_data_refuses_bad_input_before_fitting(tmp_path, capsys):
+    a = _blank_file(tmp_path / "a.csv")
+    b = _blank_file(tmp_path / "b.npz", speed=50.0)
+    frame = _blank_file(tmp_path / "frame.csv", channels=["frame_1L_y", "frame_1L_z"])
+    cases = [
+        (["--data", a, frame], "mix sensor layouts"),
+        (["--data", a, b, "--band", "0"], "band"),
+        (["--data", a, b, "--track", "t1.csv", "t2.csv", "t3.csv"], "does not exist"),
+        (["--data", a, b, "--date", "03/04/2026"], "`--date` = '03/04/2026' is not a date"),
+        (["--data", a, b, "--vehicle", "tgv"], "unknown `--vehicle` 'tgv'"),
+    ]
+    for argv, message in cases:
+        assert _exit_code(["monitor", *argv, "--out", str(tmp_path / "o")]) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "o").exists()
+
+
 def test_verdicts_reader_rejects_what_it_cannot_use(tmp_path):
     path = write_verdicts(
         tmp_path,

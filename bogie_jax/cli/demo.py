@@ -210,6 +210,8 @@ def run(args, progress) -> int:
         f"track record: the fit uses the true track plus a recording error of "
         f"{args.track_noise:g} mm RMS per channel (spectrum-shaped), {args.track_offset:g} m "
         "off in distance"
+        if args.track_noise or args.track_offset
+        else "track record: the fit uses the exact track"
     )
     progress.say(record_note)
     result = monitor(
