@@ -184,8 +184,12 @@ def test_history_gives_trends_with_a_drift_flag(tmp_path, capsys):
     left, kz = trends["yaw_dampers.left.c"], trends["primary.1L.kz"]
     # oracle: with equal standard errors the weighted slope is the ordinary least-squares slope
     days = np.array([0.0, 31.0, 62.0])
-    slope = np.polyfit(days, DRIFTING, 1)[0]
+    slope, intercept = np.polyfit(days, DRIFTING, 1)
     assert left["slope_per_day"] == pytest.approx(slope, rel=1e-9)
+    level = intercept + slope * days[-1]  # the line at the last run
+    assert left["level"] == pytest.approx(level, rel=1e-9)
+    # the line leaves the healthy band [320, 480] kN s/m at its lower edge
+    assert left["days_to_band_edge"] == pytest.approx((320e3 - level) / slope, rel=1e-9)
     assert left["times_days"] == pytest.approx(days)
     assert left["drift"] is True and left["unit"] == "N s/m"
     assert kz["drift"] is False

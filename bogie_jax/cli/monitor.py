@@ -256,12 +256,17 @@ def run_history(args, progress) -> int:
             f"no element has an estimate in two or more of the {len(records)} results: a trend "
             "needs at least two"
         )
-    rows = [("element", "runs", "level", "slope [unit/day]", "se(slope)", "drift", "p", "unit")]
+    rows = [
+        ("element", "runs", "level", "slope [unit/day]", "se(slope)", "drift", "p",
+         "days to band edge", "unit"),
+    ]  # fmt: skip
     for t, unit, _ in trends:
         rows.append(
             (
                 t.name, len(t.dates), f"{t.level:.4g}", f"{t.slope:+.3g}",
-                f"{t.slope_std_error:.3g}", "DRIFT" if t.drift else "no", f"{t.p_value:.2g}", unit,
+                f"{t.slope_std_error:.3g}", "DRIFT" if t.drift else "no",
+                "< 1e-6" if t.p_value < 1e-6 else f"{t.p_value:.2g}",
+                "-" if t.days_to_band_edge is None else f"{t.days_to_band_edge:.3g}", unit,
             )
         )  # fmt: skip
     progress.say(

@@ -139,6 +139,10 @@ def _g(x, digits: int = 4) -> str:
     return "-" if x is None else f"{x:.{digits}g}"
 
 
+def _p(p) -> str:
+    return "-" if p is None else "< 1e-6" if p < 1e-6 else f"{p:.2g}"
+
+
 def _verdict_table(rows) -> list[str]:
     lines = [
         "| element | verdict | estimate | 95 % interval | healthy band | failed below | unit |",
@@ -255,7 +259,7 @@ def write_trend_report(path, trends, *, sources=(), figure: str | None = None, n
         drift = "**drift**" if d["drift"] else "no"
         lines.append(
             f"| `{d['name']}` | {len(d['dates'])} | {_g(d['level'])} | {_g(d['slope_per_day'], 3)} "
-            f"| {_g(d['slope_std_error'], 3)} | {drift} | {_g(d['p_value'], 2)} | "
+            f"| {_g(d['slope_std_error'], 3)} | {drift} | {_p(d['p_value'])} | "
             f"{_g(d.get('days_to_band_edge'), 3)} | {d.get('unit', '')} |"
         )
     lines.append("")

@@ -146,7 +146,8 @@ def plot_trend(trend, *, band=None, unit: str = "", ax=None):
         healthy = band.healthy if hasattr(band, "healthy") else band["healthy"]
         ax.axhspan(*healthy, color="C2", alpha=0.12, label="healthy band")
     flag = "DRIFT" if d["drift"] else "no drift"
-    ax.set_title(f"{d['name']}: {flag} (p = {d['p_value']:.2g})", fontsize="medium")
+    p_text = "p < 1e-6" if d["p_value"] < 1e-6 else f"p = {d['p_value']:.2g}"
+    ax.set_title(f"{d['name']}: {flag} ({p_text})", fontsize="medium")
     ax.set_xlabel(f"days since {d['dates'][0][:10]} [day]")
     ax.set_ylabel(f"estimate [{unit}]" if unit else "estimate [-]")
     ax.grid(True, alpha=0.3)
