@@ -257,7 +257,7 @@ def test_history_refuses_a_zero_width_band(tmp_path, capsys):
         (["demo", "--speeds", "30,fast"], "comma-separated numbers"),
         (["demo", "--speeds", "30,500"], "speed"),
         (["demo", "--date", "2026-13-01"], "is not a date YYYY-MM-DD"),
-        (["demo", "--scenario", "squeaky"], "unknown defect scenario"),
+        (["demo", "--scenario", "squeaky"], "unknown `--scenario` 'squeaky'"),
         (["demo", "--track-noise", "-1"], "`--track-noise`"),
         (["demo", "--duration", "0"], "duration"),
     ],

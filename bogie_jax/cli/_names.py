@@ -6,6 +6,7 @@ library: `lookup("--method", "lm")` is identify's Levenberg-Marquardt method obj
 """
 
 from ..identify import DESIGNS, LOCAL_METHODS, SCENARIOS
+from ..monitor import DEFECT_SCENARIOS
 from ..params import PARAMETER_SETS
 from ..sensitivity import (
     LAYOUTS,
@@ -27,6 +28,8 @@ TABLE: dict[str, dict[str, object]] = {
     "method": dict(LOCAL_METHODS),
     "design": dict(DESIGNS),
     "scenario": dict(SCENARIOS),
+    # demo: the defect scenarios of bogie_jax.monitor
+    "defect": dict(DEFECT_SCENARIOS),
     # sensitivity: the analysis each `--method` runs
     "analysis": {
         "screening": sensitivity_sweeps,

@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from ..io import check_date, save_measurement, save_track_csv
-from ..monitor import DEFECT_SCENARIOS, RunSpec, as_defect_scenario, monitor, scenario_measurements
+from ..monitor import RunSpec, monitor, scenario_measurements
 from ..params import get_parameter, manchester_benchmark
 from ..track import TrackIrregularity, TrackReference
 from ._common import UsageError, split_names
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
+from ._names import lookup, names
 
 
 DEFAULT_SCENARIO = "yaw-damper-left-50"
@@ -35,7 +36,7 @@ def add_parser(sub):
         "demo",
         help="condition monitoring end to end: a bogie with a worn anti-yaw damper -> verdicts",
         description="Simulate two measurement runs of a bogie whose left anti-yaw damper is at "
-        "50 %% (sensor noise, an imperfect track record), judge every suspension element with "
+        "50 % (sensor noise, an imperfect track record), judge every suspension element with "
         "bogie_jax.monitor.monitor, print the verdict table and write verdicts.json, "
         "verdicts.png, signals.png and report.md to --out.",
     )
@@ -43,7 +44,7 @@ def add_parser(sub):
     p.add_argument(
         "--scenario",
         default=DEFAULT_SCENARIO,
-        help=f"defect scenario: {', '.join(DEFECT_SCENARIOS)} (default {DEFAULT_SCENARIO})",
+        help=f"defect scenario: {', '.join(names('defect'))} (default {DEFAULT_SCENARIO})",
     )
     p.add_argument(
         "--speeds", default="30,50", help="comma-separated run speeds [m/s] (default 30,50)"
@@ -106,7 +107,7 @@ def _check(args):
     if args.duration > 10:
         raise UsageError(f"`--duration` = {args.duration:g} s must be at most 10 s")
     try:
-        scenario = as_defect_scenario(args.scenario)
+        scenario = lookup("defect", args.scenario, "--scenario")
         runs = tuple(
             RunSpec(
                 speed=v,
