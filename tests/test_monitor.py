@@ -30,6 +30,8 @@ from bogie_jax.monitor import (
     RunSpec,
     ToleranceBand,
     as_defect_scenario,
+    classify_elements,
+    decision_z,
     levenberg_marquardt,
     monitor,
     scenario_measurements,
@@ -142,6 +144,39 @@ def test_run_specs_and_measurement_inputs_are_checked():
         scenario_measurements("healthy", [RunSpec(speed=30.0)])  # noisy run, no key
     with pytest.raises(ValueError, match="empty"):
         scenario_measurements("healthy", [])
+
+
+# ------------------------------------------------------------------------------------------
+# identifiability rule (constructed Jacobians)
+# ------------------------------------------------------------------------------------------
+
+
+def test_identifiability_rule_on_constructed_jacobians(nominal):
+    """Columns dr/d ln p built by hand: the anti-yaw dampers enter only through their sum
+    (collinear: a group), primary.1L.cz is orthogonal to everything and well measured
+    (alone), primary.1R.cz weakly (relative se 0.5: not identifiable; alone in its group)."""
+    names = ("yaw_dampers.left.c", "yaw_dampers.right.c", "primary.1L.cz", "primary.1R.cz")
+    bands = {  # half-width 0.2 of nominal
+        n: ToleranceBand.relative(float(get_parameter(nominal, n)), 0.2, unit="N s/m")
+        for n in names
+    }
+    m = 40
+    e = np.eye(m)
+    jac = np.stack([50 * e[0], 50 * e[0], 100 * e[1], 2 * e[2]], axis=1)
+    z = decision_z(0.05, len(names))
+    coords, statuses = classify_elements(nominal, names, jac, bands, None, z)
+    status = {s.name: (s.status, s.coordinate) for s in statuses}
+    assert status["primary.1L.cz"] == ("alone", "primary.1L.cz")
+    assert status["yaw_dampers.left.c"] == ("group", "yaw_dampers.c")
+    assert status["yaw_dampers.right.c"] == ("group", "yaw_dampers.c")
+    assert status["primary.1R.cz"] == ("none", "primary.1R.cz")
+    assert {c.name: c.members for c in coords} == {"primary.1L.cz": (2,), "yaw_dampers.c": (0, 1)}
+    by_name = {s.name: s for s in statuses}
+    # the rule's numbers by hand: se of an orthogonal column = 1 / |column|
+    assert by_name["primary.1L.cz"].relative_std_error == pytest.approx(1 / 100)
+    assert by_name["primary.1R.cz"].relative_std_error == pytest.approx(1 / 2)
+    assert by_name["primary.1L.cz"].limit == pytest.approx(0.5 * 0.2 / z)
+    assert not math.isfinite(by_name["yaw_dampers.left.c"].relative_std_error)
 
 
 # ------------------------------------------------------------------------------------------

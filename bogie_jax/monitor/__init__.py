@@ -12,7 +12,11 @@ from ._elements import (
     DEFAULT_CANDIDATES as DEFAULT_CANDIDATES,
     DEFAULT_FAILED_FRACTION as DEFAULT_FAILED_FRACTION,
     DEFAULT_TOLERANCE as DEFAULT_TOLERANCE,
+    MAX_CORRELATION as MAX_CORRELATION,
+    RESOLUTION as RESOLUTION,
+    Coordinate as Coordinate,
     ElementStatus as ElementStatus,
+    classify_elements as classify_elements,
 )
 from ._host_fit import HostFit as HostFit, levenberg_marquardt as levenberg_marquardt
 from ._monitor import NOISE_MODES as NOISE_MODES, monitor as monitor

@@ -14,8 +14,9 @@ the sensors' nominal noise), computed by `bogie_jax.cost.covariance_from_jacobia
      = 0.5 by default (the interval spans at most half the band, so an element half a band
      beyond the band's edge is called);
    - and it is not collinear with another candidate: |corr_ij| <= `max_correlation` (0.98)
-     for every other candidate j (a pair so correlated may trade off far beyond the linear
-     prediction when the true values are away from nominal).
+     for every other candidate j of finite se (a pair so correlated may trade off far beyond
+     the linear prediction when the true values are away from nominal; a candidate along an
+     exactly unidentifiable direction has infinite se and fails by itself).
 2. The other elements are grouped by their tied name (`yaw_dampers.left.c` and
    `yaw_dampers.right.c` -> `yaw_dampers.c`): the group moves as one factor (the column of
    the group is the sum of its members' columns). With the alone elements and the groups free,
@@ -157,7 +158,9 @@ def _half_width(band: ToleranceBand, nominal: float) -> float:
 def _passes(jac, z, half_widths, resolution, max_correlation):
     cov = covariance_from_jacobian(jac)
     se = np.asarray(cov.std_errors)
-    corr = np.abs(np.nan_to_num(np.asarray(cov.correlation), nan=1.0))
+    # NaN: correlation with a candidate of infinite se (a null direction), which fails by
+    # itself; a candidate without a component along the null directions is not collinear
+    corr = np.abs(np.nan_to_num(np.asarray(cov.correlation), nan=0.0))
     np.fill_diagonal(corr, 0.0)
     limit = resolution * half_widths / z
     most = corr.argmax(axis=1) if corr.shape[0] > 1 else np.zeros(1, dtype=int)
@@ -166,7 +169,7 @@ def _passes(jac, z, half_widths, resolution, max_correlation):
     return ok, se, limit, worst, most
 
 
-def classify(
+def classify_elements(
     params: BogieParams,
     names: tuple[str, ...],
     jacobian,

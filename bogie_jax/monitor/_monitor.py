@@ -28,7 +28,7 @@ from ..cost import covariance_from_jacobian, make_joint_objective, residual_jaco
 from ..params import BogieParams, ModelOptions, manchester_benchmark
 from ..simulate import SolveSettings
 from ._checks import RUN_MISFIT, check_inputs, failed_runs, tolerance_bands
-from ._elements import MAX_CORRELATION, RESOLUTION, check_candidates, classify
+from ._elements import MAX_CORRELATION, RESOLUTION, check_candidates, classify_elements
 from ._host_fit import levenberg_marquardt
 from ._result import FitSummary, MonitorResult, RunStatus
 from ._verdict import check_false_alarm_rate, decision_z, judge
@@ -148,7 +148,7 @@ def monitor(
 
     # 3. identifiability
     z_rule = decision_z(false_alarm_rate, len(names))
-    coords, statuses = classify(
+    coords, statuses = classify_elements(
         params, names, jac0, bands, band, z_rule,
         resolution=resolution, max_correlation=max_correlation,
     )  # fmt: skip
