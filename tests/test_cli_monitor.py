@@ -40,6 +40,7 @@ def demo(tmp_path_factory):
     return code, out, text.getvalue()
 
 
+@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
 def test_demo_runs_end_to_end_and_prints_progress_and_verdicts(demo):
     code, out, text = demo
     assert code == 0
@@ -51,6 +52,7 @@ def test_demo_runs_end_to_end_and_prints_progress_and_verdicts(demo):
         assert (out / name).stat().st_size > 500, name
 
 
+@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
 def test_demo_verdicts_json_schema(demo):
     _, out, _ = demo
     record = json.loads((out / "verdicts.json").read_text())
@@ -88,6 +90,7 @@ def test_demo_verdicts_json_schema(demo):
     assert read_verdicts(out)["date"] == "2026-03-04"  # the reader accepts its directory
 
 
+@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
 def test_demo_report_embeds_the_figures(demo):
     _, out, _ = demo
     report = (out / "report.md").read_text()
@@ -101,6 +104,7 @@ def test_demo_report_embeds_the_figures(demo):
     assert len(report.splitlines()) < 80  # one page
 
 
+@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
 def test_monitor_data_replays_the_demo_from_its_files(demo, tmp_path, capsys):
     """`monitor --data` on the runs and track record the demo wrote (CSV, 17 digits) gives the
     demo's verdicts; `--history` over both outputs gives a two-point trend per element. (The
