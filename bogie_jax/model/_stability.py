@@ -37,37 +37,50 @@ class CriticalSpeed(eqx.Module):
     found: jax.Array
 
 
+def rest_state(params: BogieParams, options: ModelOptions = ModelOptions()):
+    """The linearisation point y = (q0, 0) (20,) of `system_matrix`: q0 the static equilibrium
+    of `params`, or q = 0 where its Newton solve fails (no raise: works inside `vmap`)."""
+    rest = static_equilibrium_solve(params, options=options, throw=False)
+    ok = (rest.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(rest.value))
+    q0 = jnp.where(ok, rest.value, 0.0)
+    return jnp.concatenate([q0, jnp.zeros(N_DOF, dtype=q0.dtype)])
+
+
+def _jacobian(params, speed, y0, options):
+    model = build_model(params, speed=speed, track=perfect_track(), options=options)
+    return jax.jacfwd(vector_field, argnums=1)(0.0, y0, model)
+
+
 def system_matrix(params: BogieParams, speed, options: ModelOptions = ModelOptions()):
     """Jacobian A = d(dy/dt)/dy (20, 20) [1/s, ...] at the rest state y = (q0, 0) on a perfect
     track at `speed` [m/s] (by `jax.jacfwd`), q0 the static equilibrium of `params`
     (`static_equilibrium`; zeros for a symmetric bogie). Small motions about the rest state
     obey d(dy)/dt = A dy. Where the equilibrium's Newton solve fails (no raise: works inside
     `vmap`), e.g. for a test bogie with a coordinate held by nothing (a singular stiffness, a
-    zero eigenvalue), A is taken at q = 0, the rest state of a symmetric bogie."""
-    rest = static_equilibrium_solve(params, options=options, throw=False)
-    ok = (rest.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(rest.value))
-    q0 = jnp.where(ok, rest.value, 0.0)
-    y0 = jnp.concatenate([q0, jnp.zeros(N_DOF, dtype=q0.dtype)])
-    model = build_model(params, speed=speed, track=perfect_track(), options=options)
-    return jax.jacfwd(vector_field, argnums=1)(0.0, y0, model)
+    zero eigenvalue), A is taken at q = 0, the rest state of a symmetric bogie (`rest_state`)."""
+    return _jacobian(params, speed, rest_state(params, options), options)
+
+
+def _eigenvalues_at(params, speed, y0, options):
+    return jnp.linalg.eigvals(_jacobian(params, speed, y0, options))
 
 
 @eqx.filter_jit
 def eigenvalues(params: BogieParams, speed, options: ModelOptions = ModelOptions()):
-    """Eigenvalues [1/s] of the linearised bogie at `speed` [m/s]."""
-    return jnp.linalg.eigvals(system_matrix(params, speed, options))
+    """Eigenvalues [1/s] of the bogie linearised at its rest state at `speed` [m/s]."""
+    return _eigenvalues_at(params, speed, rest_state(params, options), options)
+
+
+def _sweep(params, speeds, y0, options):
+    eig = jax.vmap(lambda v: _eigenvalues_at(params, v, y0, options))(speeds)
+    return StabilitySweep(speeds=speeds, eigenvalues=eig, max_real_part=jnp.max(eig.real, axis=1))
 
 
 @eqx.filter_jit
 def stability_sweep(params: BogieParams, speeds, options: ModelOptions = ModelOptions()):
-    """Eigenvalues at each speed of `speeds` [m/s] (vmapped)."""
+    """Eigenvalues at each speed of `speeds` [m/s] (vmapped; one rest state for all)."""
     speeds = jnp.asarray(speeds, dtype=float)
-    eig = jax.vmap(lambda v: eigenvalues(params, v, options))(speeds)
-    return StabilitySweep(speeds=speeds, eigenvalues=eig, max_real_part=jnp.max(eig.real, axis=1))
-
-
-def _leading_real_part(params, speed, options):
-    return jnp.max(eigenvalues(params, speed, options).real)
+    return _sweep(params, speeds, rest_state(params, options), options)
 
 
 @eqx.filter_jit
@@ -84,7 +97,8 @@ def critical_speed(
 
     A grid of `n_grid` speeds brackets the first crossing, then bisection refines it.
     """
-    sweep = stability_sweep(params, jnp.linspace(v_min, v_max, n_grid), options)
+    y0 = rest_state(params, options)  # one equilibrium solve for every speed
+    sweep = _sweep(params, jnp.linspace(v_min, v_max, n_grid), y0, options)
     unstable = sweep.max_real_part > 0
     found = jnp.any(unstable)
     first = jnp.argmax(unstable)
@@ -94,11 +108,11 @@ def critical_speed(
     def bisect(_, bracket):
         a, b = bracket
         mid = 0.5 * (a + b)
-        above = _leading_real_part(params, mid, options) > 0
+        above = jnp.max(_eigenvalues_at(params, mid, y0, options).real) > 0
         return jnp.where(above, a, mid), jnp.where(above, mid, b)
 
     lo, hi = jax.lax.fori_loop(0, bisections, bisect, (lo, hi))
-    eig = eigenvalues(params, hi, options)
+    eig = _eigenvalues_at(params, hi, y0, options)
     frequency = jnp.abs(eig[jnp.argmax(eig.real)].imag) / (2 * jnp.pi)
     nan = jnp.nan
     return CriticalSpeed(
