@@ -2,6 +2,7 @@
 
 import math
 
+import equinox as eqx
 import jax
 import numpy as np
 import pytest
@@ -192,3 +193,20 @@ def test_unknown_names_name_the_value_and_the_choices(name, pattern):
         get_parameter(params, name)
     with pytest.raises(ValueError, match=pattern):
         set_parameters(params, {name: 1.0})
+
+
+def test_set_parameters_keeps_numbers_as_array_leaves():
+    """A Python number set by name becomes an array leaf, so `eqx.filter_jit` traces a function
+    of the parameters once for every value (a float leaf would be static: one trace per value)."""
+    traces = []
+
+    @eqx.filter_jit
+    def friction(p):
+        traces.append(1)
+        return p.contact.friction * 2.0
+
+    base = bj.manchester_benchmark()
+    for mu in (0.1, 0.2, 0.3):
+        p = bj.set_parameters(base, {"contact.friction": mu})
+        assert float(friction(p)) == pytest.approx(2 * mu)
+    assert len(traces) == 1

@@ -156,6 +156,12 @@ def get_parameter(params: eqx.Module, name: str):
     return value[0] + jnp.mean(value - value[0])
 
 
+def _array(value):
+    """A concrete number as a float numpy array (a Python float in a module is a static leaf for
+    `eqx.filter_jit`: each new value would compile again); JAX arrays and tracers unchanged."""
+    return value if isinstance(value, jax.Array) else np.asarray(value, dtype=float)
+
+
 def set_parameters(params: eqx.Module, values: Mapping[str, object]) -> eqx.Module:
     """`params` with the parameters `{name: value}` replaced (tied or element names).
 
@@ -168,7 +174,7 @@ def set_parameters(params: eqx.Module, values: Mapping[str, object]) -> eqx.Modu
     for where, value in resolved:
         n = len(where.spec.elements)
         if where.element is None:
-            new = jnp.broadcast_to(jnp.asarray(value, dtype=float), (n,)) if n else value
+            new = jnp.broadcast_to(jnp.asarray(value, dtype=float), (n,)) if n else _array(value)
         else:
             old = leaves.get(where.path, _leaf(params, where.path))
             old = jnp.broadcast_to(jnp.asarray(old, dtype=float), (n,))
