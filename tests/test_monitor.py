@@ -324,15 +324,19 @@ def test_monitor_leaves_out_a_run_the_fit_cannot_explain(healthy, nominal):
     reason="synthetic_measurement has no mid-run windows in this version",
 )
 def test_monitor_on_windows_cut_from_moving_runs():
-    """Windows that start 10 m and 5 m into runs from rest (track of the same length as the
+    """Windows that start 8 m and 5 m into runs from rest (track of the same length as the
     other tests', so every program is reused): the measurements record where they start, and
     the objective's lead-in over the known track before them finds the left damper."""
+    # First-sample times 8 / 32 and 5 / 40 s are exact binary fractions: at 10 m and 30 m/s
+    # (1/3 s) `synthetic_measurement` fails diffrax's check "saveat.ts must lie between t0 and
+    # t1" (sample times and t1 rounded differently inside the compiled program), whatever the
+    # lead-in: a bug of `simulate` under jit, reported, not of the monitor.
     runs = (
-        RunSpec(speed=30.0, duration=0.5, seed=3, noise_scale=0.0, start_position=10.0),
+        RunSpec(speed=32.0, duration=0.5, seed=3, noise_scale=0.0, start_position=8.0),
         RunSpec(speed=40.0, duration=0.5, seed=4, noise_scale=0.0, start_position=5.0),
     )
     measurements = scenario_measurements("yaw-damper-left-50", runs)
-    assert [float(m.start_position) for m in measurements] == [10.0, 5.0]
+    assert [float(m.start_position) for m in measurements] == [8.0, 5.0]
     result = monitor(measurements)
     assert result.verdict("yaw_dampers.left.c").verdict in ALARMS
     _non_alarms_are_healthy(result, skip=(result.verdict("yaw_dampers.left.c").name,))
@@ -380,22 +384,32 @@ def test_monitor_rejects_bad_input_before_fitting(nominal):
 
 
 @pytest.mark.heavy
-def test_joint_objective_works_with_fit_and_fisher_information(yaw_left_50, nominal, getkey):
+def test_joint_objective_works_with_fit_and_fisher_information(nominal, getkey):
     """`bogie_jax.identify.fit` and `fisher_information` take the joint objective as they take
-    one run's; the loop form gives the vmapped form's residuals (compiles three programs)."""
+    one run's; the loop form gives the vmapped form's residuals (compiles three programs).
+    Data and fit share the solver at PID rtol 1e-8 (as tests/test_identify_objective.py). The
+    status is not asserted: on these noise-free data the LM of `fit` reaches the truth (to
+    3e-6 at rtol 1e-6, 1e-5 checked here) and then ends `singular` (seen at rtol 1e-6 and
+    1e-8; the monitor's own LM stops on its cost criterion instead)."""
     from bogie_jax.identify import fit
     from bogie_jax.sensitivity import fisher_information
 
+    controller = dfx.PIDController(rtol=1e-8, atol=1e-10)
+    data = scenario_measurements(
+        "yaw-damper-left-50", RUNS, settings=SolveSettings(stepsize_controller=controller)
+    )
+    settings = SolveSettings.for_objective(stepsize_controller=controller)
     names = ("yaw_dampers.left.c", "yaw_dampers.right.c")
-    tracks = [m.track.build() for m in yaw_left_50]
-    joint = make_joint_objective(yaw_left_50, nominal, tracks, names)
-    result = fit(joint, start=[350e3, 350e3])
-    np.testing.assert_allclose(result.estimates, [200e3, 400e3], rtol=1e-4)
+    tracks = [m.track.build() for m in data]
+    joint = make_joint_objective(data, nominal, tracks, names, settings=settings)
+    result = fit(joint, start=[350e3, 350e3], throw=False)
+    np.testing.assert_allclose(result.estimates, [200e3, 400e3], rtol=1e-5)
+    assert float(result.cost) < 1e-3
     fim = fisher_information(joint)
     assert np.all(np.isfinite(np.asarray(fim.std_errors)))
-    loop = make_joint_objective(yaw_left_50, nominal, tracks, names, vmap=False)
+    loop = make_joint_objective(data, nominal, tracks, names, settings=settings, vmap=False)
     assert not loop.residual_model.vmapped
     residuals = eqx.filter_jit(lambda objective, th: objective.residuals(th))
     theta = jr.normal(getkey(), (2,)) * 0.1
     a, b = np.asarray(residuals(joint, theta)), np.asarray(residuals(loop, theta))
-    np.testing.assert_allclose(a, b, rtol=0, atol=1e-4 * np.max(np.abs(a)))
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-5 * np.max(np.abs(a)))
