@@ -1,3 +1,4 @@
+# long: one module so that every monitor test shares the compiled simulation and Jacobian programs.
 """Condition monitoring end to end (issue 19 items 1, 2, 7): the defect scenario library, the
 joint objective of several runs against the single-run objectives, `monitor` on noise-free
 data of a defective and a healthy bogie, a run the fit cannot explain, and bad input.
