@@ -51,7 +51,7 @@ ANNEAL_PIECE = 20  # proposals per annealing piece
 
 # name: (what it is, scenario or None, host devices)
 PROGRAMS = {
-    "simulate": ("forward solve of the default run (2 s, 100 Hz)", "default", 1),
+    "simulation": ("forward solve of the default run (2 s, 100 Hz)", "default", 1),
     "residuals3": ("objective.residuals, 3 parameters", "default", 1),
     "residuals10": ("objective.residuals, 10 parameters (all10, 3 s)", "all10", 1),
     "jacfwd3": ("jacfwd(JacobianResiduals), 3 parameters", "default", 1),

@@ -35,7 +35,7 @@ from scipy.integrate import solve_ivp
 import bogie_jax as bj
 from bogie_jax.batch import batch_runner
 from bogie_jax.params import get_parameter
-from bogie_jax.simulate import simulate
+from bogie_jax.simulation import simulate
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 
 

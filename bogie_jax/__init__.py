@@ -22,7 +22,7 @@ _EXPORTS = {  # what a notebook needs, by module
     ),
     "track": ("TrackReference", "perfect_track", "synthesise_track"),
     "model": ("critical_speed", "stability_sweep", "static_equilibrium"),
-    "simulate": ("SolveSettings", "Trajectory", "simulate"),
+    "simulation": ("SolveSettings", "Trajectory", "simulate"),
     "measure": ("Measurement", "default_sensor_layout", "synthetic_measurement"),
     "cost": ("Objective", "ParameterSelection", "make_objective", "select_parameters"),
     "gradients": ("gradient", "scalar_product_test"),

@@ -25,7 +25,7 @@ LAYERS = {
     "contact": 1,
     "track": 1,
     "model": 2,
-    "simulate": 3,
+    "simulation": 3,
     "_solve_settings": 3,
     "measure": 4,
     "cost": 5,
@@ -167,13 +167,17 @@ def test_no_file_over_400_lines_without_a_reason():
 
 def test_top_level_re_exports_resolve_and_import_no_jax():
     """`bogie_jax` offers what a notebook needs, and importing it loads no JAX (the command
-    line sets up devices first)."""
+    line sets up devices first). An exported function is never shadowed by a submodule of the
+    same name (importing `bogie_jax.x` sets the package attribute `x` to the module)."""
     import subprocess
     import sys
 
     code = (
         "import sys, bogie_jax as bj; assert 'jax' not in sys.modules; "
-        "[getattr(bj, n) for n in bj.__all__]; print(sorted(bj.__all__))"
+        "[getattr(bj, n) for n in bj.__all__]; import bogie_jax.cost; "
+        "assert callable(bj.simulate) and callable(bj.fit), (bj.simulate, bj.fit); "
+        "import bogie_jax.monitor; assert callable(bj.monitor), bj.monitor; "
+        "print(sorted(bj.__all__))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     names = set(eval(out.stdout))

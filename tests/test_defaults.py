@@ -25,7 +25,7 @@ from bogie_jax.identify import (
 )
 from bogie_jax.measure import synthetic_measurement
 from bogie_jax.sensitivity import fisher_information
-from bogie_jax.simulate import SolveSettings, simulate
+from bogie_jax.simulation import SolveSettings, simulate
 from bogie_jax.track import TrackReference, perfect_track
 
 

@@ -18,7 +18,7 @@ import scipy.optimize
 import bogie_jax as bj
 from bogie_jax.model import equilibrium_residual, static_equilibrium, static_equilibrium_solve
 from bogie_jax.params import PARAMETER_SETS, set_parameters
-from bogie_jax.simulate import simulate
+from bogie_jax.simulation import simulate
 from bogie_jax.track import perfect_track
 
 

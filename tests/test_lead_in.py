@@ -43,7 +43,7 @@ from bogie_jax.model import (
     system_matrix,
     vector_field,
 )
-from bogie_jax.simulate import SolveSettings, simulate
+from bogie_jax.simulation import SolveSettings, simulate
 from bogie_jax.track import ERRIB176Spectrum, perfect_track, synthesise_track
 
 

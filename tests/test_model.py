@@ -18,7 +18,7 @@ from bogie_jax.model import (
     model_constants,
     system_matrix,
 )
-from bogie_jax.simulate import simulate
+from bogie_jax.simulation import simulate
 from bogie_jax.track import perfect_track
 
 

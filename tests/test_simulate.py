@@ -11,7 +11,7 @@ import pytest
 
 import bogie_jax as bj
 from bogie_jax.batch import batch_runner
-from bogie_jax.simulate import simulate
+from bogie_jax.simulation import simulate
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 
 
@@ -126,7 +126,7 @@ def test_new_parameter_values_do_not_retrace(tracks):
 
 
 def test_float32_is_explained():
-    from bogie_jax.simulate import warn_if_float32
+    from bogie_jax.simulation import warn_if_float32
 
     with jax.enable_x64(False):
         with pytest.warns(UserWarning, match="jax_enable_x64"):

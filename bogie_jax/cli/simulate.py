@@ -5,7 +5,7 @@ import sys
 from ..io import save_trajectory
 from ..params import PARAMETER_SETS
 from ..plot import plot_simulation
-from ..simulate import check_simulation_inputs, simulate
+from ..simulation import check_simulation_inputs, simulate
 from ._common import UsageError, require_suffix
 from ._names import names
 from ._track import TRACK_HELP, build_track, track_reference

@@ -26,7 +26,7 @@ from jaxtyping import Array, Bool
 
 from .._solve_settings import resolve_settings
 from ..params import BogieParams, ModelOptions
-from ..simulate import SolveSettings
+from ..simulation import SolveSettings
 from ._make import make_objective
 from ._objective import Objective, ResidualModel
 

@@ -34,7 +34,7 @@ import numpy as np
 from .._validation import check_range
 from ..model import eigenvalues
 from ..params import BogieParams, ModelOptions
-from ..simulate import MAX_SPEED, check_window
+from ..simulation import MAX_SPEED, check_window
 
 
 DEFAULT_DECAY = 1e-3  # the factor by which the start transient must decay within the lead-in

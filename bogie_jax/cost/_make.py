@@ -9,7 +9,7 @@ from ..measure import Measurement, MeasurementError
 from ..measure._layout import check_sensor_names
 from ..measure._measurement import check_channels_in_layout
 from ..params import BogieParams, ModelOptions
-from ..simulate import SolveSettings, check_window, sample_times
+from ..simulation import SolveSettings, check_window, sample_times
 from ..track import TrackIrregularity
 from ._lead_in import window_lead_in
 from ._objective import Objective, ResidualModel

@@ -20,7 +20,7 @@ from jaxtyping import Array, Bool, Float
 from ..measure import sensor_readings
 from ..model import build_model
 from ..params import BogieParams, ModelOptions
-from ..simulate import SolveSettings, Trajectory, simulate
+from ..simulation import SolveSettings, Trajectory, simulate
 from ..track import TrackIrregularity
 from ._selection import ParameterSelection
 

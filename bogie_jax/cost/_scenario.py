@@ -6,7 +6,7 @@ import numpy as np
 from .._solve_settings import SOLVE_OPTIONS, resolve_settings
 from ..measure import synthetic_measurement
 from ..params import BogieParams, ModelOptions
-from ..simulate import SolveSettings
+from ..simulation import SolveSettings
 from ..track import TrackIrregularity, TrackReference
 from ._make import make_objective
 from ._objective import Objective

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..cost import get_parameter, make_objective, select_parameters
 from ..params import PARAMETER_SETS, parameter_specs, set_parameters
-from ..simulate import SolveSettings
+from ..simulation import SolveSettings
 from ..track import TrackReference
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model import DOF_NAMES, DOF_UNITS
-from ..simulate import Trajectory
+from ..simulation import Trajectory
 
 
 def _columns():

@@ -9,7 +9,7 @@ import numpy as np
 from .._solve_settings import resolve_settings
 from ..model import BogieModel, accelerations, build_model
 from ..params import BogieParams, ModelOptions
-from ..simulate import (
+from ..simulation import (
     SolveSettings,
     Trajectory,
     check_simulation_inputs,
@@ -115,7 +115,7 @@ def synthetic_measurement(
     **Returns:** a `Measurement` whose `layout` describes `sensors`.
 
     **Raises:** `RuntimeError` if the solve fails; `ValueError` for a bad window
-    (`bogie_jax.simulate.check_window`), before anything is compiled.
+    (`bogie_jax.simulation.check_window`), before anything is compiled.
     """
     if track_reference is not None and not isinstance(track_reference, TrackReference):
         raise TypeError(

@@ -1,5 +1,8 @@
 """Condition monitoring: verdicts per suspension element and trends over dated runs."""
 
+import sys
+import types
+
 from ._defects import (
     DEFECT_SCENARIOS as DEFECT_SCENARIOS,
     FAILED_FLOOR as FAILED_FLOOR,
@@ -33,3 +36,15 @@ from ._verdict import (
     decision_z as decision_z,
     judge as judge,
 )
+
+
+class _CallablePackage(types.ModuleType):
+    """`bogie_jax.monitor` is this package and, called, the function `monitor`: importing a
+    submodule binds it as an attribute of its parent package, so the top-level export
+    `bogie_jax.monitor` would otherwise be the package, not the function."""
+
+    def __call__(self, *args, **kwargs):
+        return monitor(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallablePackage

@@ -28,7 +28,7 @@ from ..params import (
     resolve_parameter,
     set_parameters,
 )
-from ..simulate import SolveSettings
+from ..simulation import SolveSettings
 from ..track import SPECTRA, TrackReference
 
 

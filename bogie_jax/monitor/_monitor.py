@@ -26,7 +26,7 @@ import numpy as np
 
 from ..cost import covariance_from_jacobian, make_joint_objective, residual_jacobian
 from ..params import BogieParams, ModelOptions, manchester_benchmark
-from ..simulate import SolveSettings
+from ..simulation import SolveSettings
 from ._checks import RUN_MISFIT, check_inputs, failed_runs, tolerance_bands
 from ._elements import MAX_CORRELATION, RESOLUTION, check_candidates, classify_elements
 from ._host_fit import levenberg_marquardt

@@ -197,7 +197,13 @@ def simulate(
     speed_ = jnp.asarray(speed, dtype=float)
     first = jnp.asarray(start_position, dtype=float) / speed_  # [s] model time of sample 0
     ts = first + sample_times(duration, sample_rate)
-    t0 = ts[0] - jnp.asarray(lead_in, dtype=float) / speed_  # <= ts[0] by construction
+    # [t0, t1] padded by a few ulps: inside a compiled program XLA may recompute `ts` in each
+    # fusion that reads it, rounding differently by an ulp, and diffrax's check that every save
+    # time lies in [t0, t1] then fails (seen at 30 m/s, 10 m into the track; an optimisation
+    # barrier does not prevent it). The pad (~1e-14 s) moves no result measurably.
+    pad = 64 * jnp.finfo(ts.dtype).eps * jnp.maximum(1.0, jnp.abs(ts[-1]))
+    t0 = ts[0] - jnp.asarray(lead_in, dtype=float) / speed_ - pad
+    t1 = ts[-1] + pad
     model = build_model(params, speed=speed, track=track, options=options)
     rest = None
     if y0 is None:
@@ -207,7 +213,7 @@ def simulate(
         dfx.ODETerm(vector_field),
         settings.solver,
         t0=t0,
-        t1=ts[-1],
+        t1=t1,
         dt0=settings.dt0,
         y0=jnp.asarray(y0, dtype=float),
         args=model,
