@@ -56,6 +56,7 @@ def test_bad_input_is_a_usage_error_before_evaluation(argv, match, tmp_path, mon
 
 
 @pytest.mark.slow
+@pytest.mark.heavy  # 3-6 min of compile on 2 cores: see README, Tests
 def test_sobol_and_fim_write_results_and_pngs(tmp_path, capsys):
     out = tmp_path / "sobol"
     assert (
@@ -106,6 +107,7 @@ def test_sobol_and_fim_write_results_and_pngs(tmp_path, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy  # 3-6 min of compile on 2 cores: see README, Tests
 def test_screening_and_profile_write_results_and_pngs(tmp_path, capsys):
     names = ["primary.kz", "yaw_dampers.c"]
     out = tmp_path / "screening"
