@@ -47,8 +47,8 @@ from bogie_jax.gradcheck import gradient_report, median_time, report_table  # no
 from bogie_jax.gradients import (  # noqa: E402
     METHODS,
     compiled_residuals,
+    jacobian_by_mode,
     reference_gradient,
-    residual_jacobian,
 )
 from bogie_jax.measure import Measurement, synthetic_measurement  # noqa: E402
 from bogie_jax.params import parameter_names  # noqa: E402
@@ -130,7 +130,7 @@ def _jacobian_records(objective, theta, repeats):
     out = []
     for mode in ("fwd", "rev"):
         first, t = median_time(
-            lambda: residual_jacobian(objective, theta, mode=mode).jacobian, repeats
+            lambda: jacobian_by_mode(objective, theta, mode=mode).jacobian, repeats
         )
         out.append(
             dict(

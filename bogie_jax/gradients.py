@@ -176,7 +176,7 @@ def gradient(
       `diffrax.BacksolveAdjoint(solver=...)`); it replaces the objective's `adjoint`.
     - `mode`: "fwd" or "rev" for AD methods that support both (`"direct"`); default per method.
     - `jacobian`: also return dr/dtheta (forward mode: free; reverse mode: one reverse pass per
-      residual, which is slow for many residuals, see `residual_jacobian`).
+      residual, which is slow for many residuals, see `jacobian_by_mode`).
     - `rel_noise`, `typical_scale`: the finite-difference step rule (module docstring).
 
     AD methods are pure JAX (usable under `jit`/`vmap`); finite differences evaluate the
@@ -202,8 +202,10 @@ def gradient(
     return GradientResult(0.5 * jnp.sum(r**2), grad, r, jac if jacobian else None, name, mode)
 
 
-def residual_jacobian(objective: Objective, theta, *, mode: str | None = None) -> GradientResult:
-    """The residual Jacobian dr/dtheta (m, n) for Gauss-Newton / Levenberg-Marquardt.
+def jacobian_by_mode(objective: Objective, theta, *, mode: str | None = None) -> GradientResult:
+    """The residual Jacobian dr/dtheta (m, n) as a `GradientResult`, by forward or reverse AD, to
+    compare the two modes (fits and statistics use `bogie_jax.cost.residual_jacobian`, which this
+    calls in forward mode).
 
     Default `mode`: forward (`ForwardMode` + one tangent per parameter) when
     n_residuals >= n_params, which is every realistic measurement; reverse (one reverse pass per

@@ -23,8 +23,8 @@ from bogie_jax.gradients import (
     fd_steps,
     full_checkpoints,
     gradient,
+    jacobian_by_mode,
     reference_gradient,
-    residual_jacobian,
     resolve_method,
     scalar_product_test,
 )
@@ -105,8 +105,8 @@ def test_zero_creepage_throughout_gives_a_finite_zero_gradient(objective, theta0
         )
 
 
-def test_residual_jacobian_forward_by_default_and_consistent(objective, theta0, reference):
-    result = residual_jacobian(objective, theta0)
+def test_jacobian_by_mode_forward_by_default_and_consistent(objective, theta0, reference):
+    result = jacobian_by_mode(objective, theta0)
     assert result.mode == "fwd"  # 204 residuals >> 3 parameters
     assert default_jacobian_mode(10, 20) == "rev" and default_jacobian_mode(204, 3) == "fwd"
     assert result.jacobian.shape == (objective.n_residuals, 3)
@@ -119,7 +119,7 @@ def test_residual_jacobian_forward_by_default_and_consistent(objective, theta0, 
 
 def test_reverse_jacobian_rows_equal_forward_rows(objective, theta0):
     # J^T e_i by the compiled reverse pass (cotangent e_i) against row i of the forward Jacobian.
-    jac = np.asarray(residual_jacobian(objective, theta0, mode="fwd").jacobian)
+    jac = np.asarray(jacobian_by_mode(objective, theta0, mode="fwd").jacobian)
     from bogie_jax.gradients import residuals_and_pullback as _vjp_theta
 
     for i in (7, 101):
