@@ -8,11 +8,12 @@ every pool thread can block at once, and the process deadlocks (seen with 6 para
 devices). Householder QR in a `fori_loop` over the (few) columns has no custom call, batches
 under `vmap` like any other operation and costs O(m n^2), as LAPACK does.
 
-The same solver serves the square Newton systems of the static equilibrium (and their transposes
-in reverse-mode differentiation through `optimistix.ImplicitAdjoint`): lineax's `LU` rejects its
-right-hand side inside `shard_map` (its structure check compares the shape structs' mesh
-annotation), so an equilibrium solved inside a sharded multistart batch needs a solver that does
-not run that check. Algorithm: Golub & Van Loan, Matrix Computations (4th ed.), 5.2.2 and 5.3.3.
+The same solver serves the square Newton systems of the static equilibrium, and `solve_square`
+its implicit-function-theorem tangent solves: lineax's `LU` rejects its right-hand side inside
+`shard_map` (its structure check compares the shape structs' mesh annotation), so an
+equilibrium solved inside a sharded multistart batch needs a solver that does not run that
+check. `HouseholderQR` also transposes square systems (lineax's solver interface).
+Algorithm: Golub & Van Loan, Matrix Computations (4th ed.), 5.2.2 and 5.3.3.
 """
 
 from typing import Any
