@@ -200,8 +200,10 @@ def simulate(
     # [t0, t1] padded by a few ulps: inside a compiled program XLA may recompute `ts` in each
     # fusion that reads it, rounding differently by an ulp, and diffrax's check that every save
     # time lies in [t0, t1] then fails (seen at 30 m/s, 10 m into the track; an optimisation
-    # barrier does not prevent it). The pad (~1e-14 s) moves no result measurably.
-    pad = 64 * jnp.finfo(ts.dtype).eps * jnp.maximum(1.0, jnp.abs(ts[-1]))
+    # barrier does not prevent it). The pad (~1e-14 s) moves no result measurably; a run from the
+    # start of the track (first = 0, exact sample times) gets none, so its steps are unchanged
+    # (a constant-step window gets one extra step of the pad's length).
+    pad = jnp.where(first == 0, 0.0, 64 * jnp.finfo(ts.dtype).eps * jnp.maximum(1.0, ts[-1]))
     t0 = ts[0] - jnp.asarray(lead_in, dtype=float) / speed_ - pad
     t1 = ts[-1] + pad
     model = build_model(params, speed=speed, track=track, options=options)
