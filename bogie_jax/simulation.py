@@ -72,7 +72,7 @@ def check_simulation_inputs(speed, duration, sample_rate, max_steps: int = 100_0
 def sample_times(duration: float, sample_rate: float):
     """Sample times 0, 1/fs, ..., up to `duration` [s] (static length)."""
     n = int(math.floor(duration * sample_rate + 1e-9)) + 1
-    return jnp.arange(n) / sample_rate
+    return np.arange(n) / sample_rate
 
 
 def track_end(track: TrackIrregularity):
@@ -124,6 +124,12 @@ def _concrete(x):
     if isinstance(x, jax.core.Tracer):
         return None
     return float(np.asarray(x))
+
+
+def _vector_field_in_window_time(tau, y, args):
+    """`vector_field` at model time t = first + tau; `args` = (model, first [s])."""
+    model, first = args
+    return vector_field(first + tau, y, model)
 
 
 def sample_accelerations(model, ts, q, qd):
@@ -196,30 +202,26 @@ def simulate(
     warn_if_float32()
     speed_ = jnp.asarray(speed, dtype=float)
     first = jnp.asarray(start_position, dtype=float) / speed_  # [s] model time of sample 0
-    ts = first + sample_times(duration, sample_rate)
-    # [t0, t1] padded by a few ulps: inside a compiled program XLA may recompute `ts` in each
-    # fusion that reads it, rounding differently by an ulp, and diffrax's check that every save
-    # time lies in [t0, t1] then fails (seen at 30 m/s, 10 m into the track; an optimisation
-    # barrier does not prevent it). The pad (~1e-14 s) moves no result measurably; a run from the
-    # start of the track (first = 0, exact sample times) gets none, so its steps are unchanged
-    # (a constant-step window gets one extra step of the pad's length).
-    pad = jnp.where(first == 0, 0.0, 64 * jnp.finfo(ts.dtype).eps * jnp.maximum(1.0, ts[-1]))
-    t0 = ts[0] - jnp.asarray(lead_in, dtype=float) / speed_ - pad
-    t1 = ts[-1] + pad
+    # Integrated in the window's own time tau = t - first: the save times are then exact
+    # constants (a window starting mid-track has the same step grid as a run from the track
+    # start; diffrax's check that every save time lies in [t0, t1] cannot fail on rounding).
+    window_ts = sample_times(duration, sample_rate)
+    ts = first + window_ts
+    tau0 = -jnp.asarray(lead_in, dtype=float) / speed_
     model = build_model(params, speed=speed, track=track, options=options)
     rest = None
     if y0 is None:
         rest = static_equilibrium_solve(params, options=options, throw=settings.throw)
         y0 = jnp.concatenate([rest.value, jnp.zeros(N_DOF, dtype=rest.value.dtype)])
     solution = dfx.diffeqsolve(
-        dfx.ODETerm(vector_field),
+        dfx.ODETerm(_vector_field_in_window_time),
         settings.solver,
-        t0=t0,
-        t1=t1,
+        t0=tau0,
+        t1=float(window_ts[-1]),
         dt0=settings.dt0,
         y0=jnp.asarray(y0, dtype=float),
-        args=model,
-        saveat=dfx.SaveAt(ts=ts),
+        args=(model, first),
+        saveat=dfx.SaveAt(ts=window_ts),
         stepsize_controller=settings.stepsize_controller,
         adjoint=settings.adjoint,
         max_steps=settings.max_steps,
