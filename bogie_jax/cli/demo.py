@@ -7,8 +7,7 @@ true one: the true irregularity plus a recording error of `--track-noise` RMS pe
 positioned `--track-offset` metres wrong along the track. The recording error is a second,
 independent realisation of the same spectrum (`TrackReference` with another seed) scaled to
 that RMS (the cross level to the level difference of the two rails over the contact distance
-2 b_0): an error spectrum shaped like the track's. The library has no such helper; it is built
-here from `bogie_jax.track`'s public functions.
+2 b_0): an error spectrum shaped like the track's (`bogie_jax.monitor.recorded_track`).
 """
 
 import datetime
@@ -19,16 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from ..io import check_date, save_measurement, save_track_csv
-from ..monitor import RunSpec, monitor, scenario_measurements
+from ..monitor import RunSpec, monitor, recorded_track, scenario_measurements
 from ..params import get_parameter, manchester_benchmark
-from ..track import TrackIrregularity, TrackReference
 from ._common import UsageError, split_names
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup, names
 
 
 DEFAULT_SCENARIO = "yaw-damper-left-50"
-ERROR_SEED_OFFSET = 1000  # seed of the recording error: the run's track seed + this
 
 
 def add_parser(sub):
@@ -126,29 +123,6 @@ def _check(args):
     except ValueError as e:
         raise UsageError(str(e)) from None
     return scenario, runs, date
-
-
-def recorded_track(
-    reference: TrackReference, *, noise: float, offset: float, semi_distance: float
-) -> TrackIrregularity:
-    """The track of `reference` as a recording car measures it (module docstring): the true
-    samples plus an error of RMS `noise` [m] per channel (cross level `noise / (2
-    semi_distance)` [rad]), shifted by `offset` [m] (the record's irregularity at s is the true
-    one at s + offset)."""
-    true = reference.build()
-    values = np.asarray(true.values, dtype=float)
-    if noise > 0:
-        other = TrackReference(
-            spectrum=reference.spectrum, seed=reference.seed + ERROR_SEED_OFFSET,
-            length=reference.length, band=reference.band,
-        ).build()  # fmt: skip
-        error = np.asarray(other.values, dtype=float)
-        rms = np.sqrt(np.mean(error**2, axis=0))
-        target = np.array([noise, noise, noise / (2 * semi_distance)])
-        values = values + error * (target / rms)
-    return TrackIrregularity(
-        float(np.asarray(true.s0)) - offset, float(np.asarray(true.ds)), values
-    )
 
 
 def _truth(scenario, params) -> dict:

@@ -22,6 +22,16 @@ from ._elements import (
     classify_elements as classify_elements,
 )
 from ._host_fit import HostFit as HostFit, levenberg_marquardt as levenberg_marquardt
+from ._imperfections import (
+    ERROR_SEED_OFFSET as ERROR_SEED_OFFSET,
+    channel_rms as channel_rms,
+    nonlinear_options as nonlinear_options,
+    recorded_track as recorded_track,
+    with_channel_noise as with_channel_noise,
+    with_sensor_bias as with_sensor_bias,
+    with_speed_error as with_speed_error,
+    worn_wheels as worn_wheels,
+)
 from ._monitor import NOISE_MODES as NOISE_MODES, monitor as monitor
 from ._result import (
     FitSummary as FitSummary,
