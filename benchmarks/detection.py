@@ -1,0 +1,573 @@
+# long: one driver for the case generator, the parallel runner with its resumable record,
+# and the aggregate tables; they share the case record's fields.
+"""Detection benchmark (issue 19, item 6): `bogie_jax.monitor.monitor` as a black box on
+random synthetic cases with the imperfections of real data (item 4).
+
+**A case** (all of it drawn from `numpy.random.default_rng([seed, index])`, so a case is the
+same whatever the shard, worker, order or imperfection mode):
+- the bogie: healthy for every third case (index % 3 == 0: a third of the cases plus one at
+  most), else a defect scenario of `bogie_jax.monitor.DEFECT_SCENARIOS` (type and size from the
+  library) drawn with weight 3 for `yaw-damper-left-50` (the headline target, a 50 % loss of one
+  anti-yaw damper) and 1 for each of the six others;
+- two runs at speeds drawn uniformly in [30, 60] m/s, each on its own random track section
+  (ERRI-low spectrum, random seed), from rest at the track start, `--duration` s at
+  `--sample-rate` Hz, the 13 channels of the default sensor layout;
+- sensor noise: Gaussian, standard deviation f times each channel's RMS (over both runs of the
+  case), f drawn uniformly in [1 %, 3 %] per case ("noise 1-3 %"); the sensor layout states these
+  levels (the fit's weights are right) unless the `channel-noise` imperfection is on.
+Every run has the same shape (duration, sample rate, channels, track length: the longest run
+at the highest speed plus the wheelbase and 50 m), so one compiled simulation and one compiled
+joint Jacobian serve every case of a process (speeds, seeds and values are traced).
+
+**Imperfections** (`--imperfection`, comma-separated; `default` = `track,speed,bias`, items
+4 (a)-(c)), each with its value drawn per case whether on or not:
+- `track` (a): the fit's track is a recording of the true one (`recorded_track`): 0.3 mm RMS
+  error per channel and a distance offset uniform in [-0.5, 0.5] m, per run;
+- `speed` (b): the fit is told each run's speed times 1 + e, e uniform in [-1 %, 1 %];
+- `bias` (c): a constant bias per channel, uniform in [-5 %, 5 %] of the channel's RMS, the
+  same on both runs, unknown to the fit;
+- `nonlinear` (d): data from the model with creep saturation and blow-off anti-yaw dampers;
+- `channel-noise` (e): the layout keeps the sensors' nominal noise levels (the fit's weights
+  are wrong by the ratio of the true f * RMS to the nominal noise_std, channel by channel);
+- `worn-wheels` (f): the true cone slope is nominal times a factor uniform in [0.7, 1.3];
+- `none`: no imperfection; `all`: (a)-(f).
+
+**Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal)`, default
+arguments otherwise): truth, verdicts, estimates, standard errors, 95 % intervals, fit status,
+wall times; each finished case is appended as one line of `results/<out>.jsonl` (per shard:
+`<out>.shard<i>of<n>.jsonl`) and a re-run skips the cases found there.
+
+**Aggregates** (over every record of `<out>*.jsonl`): per defect type the detection rate (any
+element degraded or failed), the correct-element rate among detected cases (an alarm on a
+changed element or on a group holding one), wrong-element alarms, the absolute error of the
+estimated relative change of the changed element; the false-alarm rate on healthy bogies; per
+element the mean absolute error of the estimated relative change (estimate / nominal - 1
+against truth / nominal - 1; a group: its members' mean) where it is identifiable alone, and
+the coverage of its 95 % interval. Rates carry Wilson 95 % intervals.
+
+Run (from the repository root):
+    python benchmarks/detection.py --workers 16               # 100 cases, items 4 (a)-(c)
+    python benchmarks/detection.py --imperfection speed        # 30 cases, one imperfection
+    python benchmarks/detection.py --shard 0/2 --workers 16    # half the cases (other: 1/2)
+    python benchmarks/detection.py --report                    # tables from the records only
+Writes results/<out>.json (records + aggregates + environment) and results/<out>.md; <out>
+is `detection` for the default imperfections, else `detection_<imperfections>`.
+"""
+
+import os
+
+
+# Runtime checks become NaNs rather than host callbacks, so the persistent compilation cache
+# keeps every program and a resumed run skips compiling (as identification.py).
+os.environ.setdefault("EQX_ON_ERROR", "nan")
+
+import argparse
+import hashlib
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import jax
+
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update(
+    "jax_compilation_cache_dir", str(Path(__file__).resolve().parents[1] / ".jax_cache")
+)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+import jax.random as jr
+import numpy as np
+
+from bogie_jax.measure import default_sensor_layout, synthetic_measurement
+from bogie_jax.monitor import (
+    DEFAULT_CANDIDATES,
+    DEFECT_SCENARIOS,
+    monitor,
+    nonlinear_options,
+    recorded_track,
+    with_channel_noise,
+    with_sensor_bias,
+    with_speed_error,
+    worn_wheels,
+)
+from bogie_jax.params import ModelOptions, get_parameter, manchester_benchmark
+from bogie_jax.track import TrackReference
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks._common import RESULTS, write_outputs  # noqa: E402
+
+
+IMPERFECTIONS = ("track", "speed", "bias", "nonlinear", "channel-noise", "worn-wheels")
+ALIASES = {"default": ("track", "speed", "bias"), "all": IMPERFECTIONS, "none": ()}
+HEADLINE = "yaw-damper-left-50"
+DEFECTS = tuple(n for n in DEFECT_SCENARIOS if n != "healthy")
+WEIGHTS = np.array([3.0 if n == HEADLINE else 1.0 for n in DEFECTS])
+ALARMS = ("degraded", "failed")
+N_CHANNELS = len(default_sensor_layout(manchester_benchmark()))
+WHEELBASE_MARGIN = 50.0  # [m] track beyond the longest run and the wheelbase
+
+
+def parse_imperfections(text: str) -> tuple[str, ...]:
+    out: list[str] = []
+    for name in (t.strip() for t in text.split(",") if t.strip()):
+        if name not in IMPERFECTIONS and name not in ALIASES:
+            raise SystemExit(
+                f"--imperfection: unknown {name!r}; valid: {', '.join((*IMPERFECTIONS, *ALIASES))}"
+            )
+        out += ALIASES.get(name, (name,))
+    return tuple(n for n in IMPERFECTIONS if n in out)
+
+
+def stem(imperfections: tuple[str, ...]) -> str:
+    if imperfections == ALIASES["default"]:
+        return "detection"
+    return "detection_" + ("-".join(imperfections) if imperfections else "none")
+
+
+def config_of(args) -> dict:
+    """Everything a case depends on: records of another configuration are not mixed in."""
+    return {
+        "seed": args.seed,
+        "imperfections": list(args.imperfections),
+        "duration_s": args.duration,
+        "sample_rate_hz": args.sample_rate,
+        "speed_range_m_s": list(args.speed_range),
+        "noise_range": list(args.noise_range),
+        "track_spectrum": args.track_spectrum,
+        "track_noise_mm": args.track_noise,
+        "max_offset_m": args.max_offset,
+        "max_speed_error": args.max_speed_error,
+        "bias_fraction": args.bias,
+        "max_wear": args.max_wear,
+        "false_alarm_rate": args.false_alarm_rate,
+    }
+
+
+def draw_case(cfg: dict, index: int) -> dict:
+    """The random draws of case `index` (module docstring), every imperfection's included."""
+    rng = np.random.default_rng([cfg["seed"], index])
+    healthy = index % 3 == 0
+    defect = DEFECTS[rng.choice(len(DEFECTS), p=WEIGHTS / WEIGHTS.sum())]
+    lo, hi = cfg["speed_range_m_s"]
+    n_lo, n_hi = cfg["noise_range"]
+    return {
+        "index": index,
+        "scenario": "healthy" if healthy else defect,
+        "speeds": rng.uniform(lo, hi, 2).tolist(),
+        "track_seeds": rng.integers(0, 2**31 - 10_000, 2).tolist(),
+        "noise_fraction": float(rng.uniform(n_lo, n_hi)),
+        "noise_seed": int(rng.integers(0, 2**31)),
+        "offsets_m": rng.uniform(-cfg["max_offset_m"], cfg["max_offset_m"], 2).tolist(),
+        "speed_errors": rng.uniform(-cfg["max_speed_error"], cfg["max_speed_error"], 2).tolist(),
+        "bias_fractions": rng.uniform(
+            -cfg["bias_fraction"], cfg["bias_fraction"], N_CHANNELS
+        ).tolist(),
+        "cone_slope_factor": float(rng.uniform(1 - cfg["max_wear"], 1 + cfg["max_wear"])),
+    }
+
+
+def _value(params, name) -> float:
+    return float(np.asarray(get_parameter(params, name)))
+
+
+def run_case(cfg: dict, index: int) -> dict:
+    """Simulate case `index`, judge it with `monitor`, return its record."""
+    case = draw_case(cfg, index)
+    on = set(cfg["imperfections"])
+    tic = time.perf_counter()
+    nominal = manchester_benchmark()
+    scenario = DEFECT_SCENARIOS[case["scenario"]]
+    truth = scenario.true_params(nominal)
+    if "worn-wheels" in on:
+        truth = worn_wheels(truth, case["cone_slope_factor"])
+    options = nonlinear_options() if "nonlinear" in on else ModelOptions()
+    duration, rate = cfg["duration_s"], cfg["sample_rate_hz"]
+    wheelbase = 2.0 * _value(nominal, "geometry.semi_wheelbase")
+    length = cfg["speed_range_m_s"][1] * duration + wheelbase + WHEELBASE_MARGIN
+    refs = [
+        TrackReference(spectrum=cfg["track_spectrum"], seed=s, length=length)
+        for s in case["track_seeds"]
+    ]
+    record = {"case": case, "config_hash": config_hash(cfg), "pid": os.getpid()}
+    try:
+        clean = [
+            synthetic_measurement(
+                truth,
+                ref.build(),
+                speed=v,
+                duration=duration,
+                sample_rate=rate,
+                track_reference=ref,
+                options=options,
+            )  # fmt: skip
+            for ref, v in zip(refs, case["speeds"])
+        ]
+        runs = with_channel_noise(
+            clean,
+            case["noise_fraction"],
+            key=jr.PRNGKey(case["noise_seed"]),
+            declared="channel-noise" not in on,
+        )
+        if "bias" in on:
+            runs = with_sensor_bias(runs, case["bias_fractions"])
+        if "speed" in on:
+            runs = tuple(with_speed_error(m, e) for m, e in zip(runs, case["speed_errors"]))
+        semi = _value(nominal, "contact.contact_semi_distance")
+        track_on = "track" in on
+        tracks = [
+            recorded_track(
+                ref,
+                noise=cfg["track_noise_mm"] * 1e-3 if track_on else 0.0,
+                offset=off if track_on else 0.0,
+                semi_distance=semi,
+            )
+            for ref, off in zip(refs, case["offsets_m"])
+        ]
+        record["simulate_s"] = time.perf_counter() - tic
+        t0 = time.perf_counter()
+        result = monitor(runs, tracks, params=nominal, false_alarm_rate=cfg["false_alarm_rate"])
+        record["monitor_s"] = time.perf_counter() - t0
+    except (RuntimeError, ValueError) as e:
+        record.update(error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - tic)
+        return record
+    record["truth"] = {n: _value(truth, n) for n in DEFAULT_CANDIDATES}
+    record["nominal"] = {n: _value(nominal, n) for n in DEFAULT_CANDIDATES}
+    record["changed"] = list(scenario.elements)
+    record["verdicts"] = [
+        {
+            "name": v.name,
+            "verdict": v.verdict,
+            "estimate": v.estimate,
+            "std_error": v.std_error,
+            "ci95": list(v.ci95),
+            "healthy_band": list(v.band.healthy),
+            "members": list(v.evidence.get("members") or [v.name]),
+            "identifiable": v.evidence.get("identifiable", ""),
+        }
+        for v in result.verdicts
+    ]
+    record["fit"] = {
+        "status": result.fit.status,
+        "steps": result.fit.steps,
+        "noise_variance": result.fit.noise_variance,
+        "sigma2": result.fit.sigma2,
+        "runs_used": result.fit.runs_used,
+    }
+    record["monitor_timings"] = dict(result.timings)
+    record["wall_s"] = time.perf_counter() - tic
+    return _finite(record)
+
+
+def _finite(x):
+    """JSON-safe: non-finite floats as None."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def config_hash(cfg: dict) -> str:
+    return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:12]
+
+
+# --- records on disk: one JSON line per finished case ---
+
+
+def jsonl_path(out: str, shard: tuple[int, int]) -> Path:
+    i, n = shard
+    return RESULTS / (f"{out}.jsonl" if n == 1 else f"{out}.shard{i}of{n}.jsonl")
+
+
+def load_records(out: str, cfg: dict) -> dict[int, dict]:
+    """Every record of `<out>.jsonl` and `<out>.shard*.jsonl` (by case index); a record of
+    another configuration raises (use another `--out`)."""
+    want, records = config_hash(cfg), {}
+    for path in sorted(RESULTS.glob(f"{out}.jsonl")) + sorted(RESULTS.glob(f"{out}.shard*.jsonl")):
+        for line in path.read_text().splitlines():
+            if not line.strip():
+                continue
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # a line cut short by a killed process: its case runs again
+            if rec.get("config_hash") != want:
+                raise SystemExit(
+                    f"{path} holds cases of another configuration (hash "
+                    f"{rec.get('config_hash')}, this run {want}): pass another --out or move it"
+                )
+            records[rec["case"]["index"]] = rec
+    return records
+
+
+_DONE_HERE = [0]  # cases this process has run: the first one compiles
+
+
+def _worker(job):
+    cfg, index = job
+    _DONE_HERE[0] += 1
+    rec = run_case(cfg, index)
+    rec["process_case_number"] = _DONE_HERE[0]
+    return rec
+
+
+def run_cases(args, cfg) -> None:
+    done = load_records(args.out, cfg)
+    i, n = args.shard
+    todo = [k for k in range(args.cases) if k % n == i and k not in done]
+    print(
+        f"{args.out}: {len(done)} cases on record, {len(todo)} to run in shard {i}/{n} "
+        f"with {args.workers} worker(s); imperfections: {', '.join(args.imperfections) or 'none'}",
+        flush=True,
+    )
+    if not todo:
+        return
+    path = jsonl_path(args.out, args.shard)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tic = time.perf_counter()
+    jobs = [(cfg, k) for k in todo]
+    with path.open("a") as f:
+
+        def save(rec, count):
+            f.write(json.dumps(rec) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+            c = rec["case"]
+            status = rec.get("error") or ", ".join(
+                f"{v['name']} {v['verdict']}" for v in rec["verdicts"] if v["verdict"] in ALARMS
+            )
+            print(
+                f"[{count}/{len(todo)} {time.perf_counter() - tic:.0f} s] case {c['index']} "
+                f"{c['scenario']}: {status or 'no alarm'} ({rec.get('wall_s', 0):.1f} s)",
+                flush=True,
+            )
+
+        if args.workers == 1:
+            for count, job in enumerate(jobs, start=1):
+                save(_worker(job), count)
+        else:
+            import multiprocessing as mp
+
+            # one XLA thread per worker process: the workers fill the cores
+            flags = os.environ.get("XLA_FLAGS", "")
+            os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
+            with mp.get_context("spawn").Pool(args.workers, maxtasksperchild=None) as pool:
+                for count, rec in enumerate(pool.imap_unordered(_worker, jobs), start=1):
+                    save(rec, count)
+
+
+# --- aggregates ---
+
+
+def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score 95 % interval of a binomial proportion k / n (Wilson 1927)."""
+    if n == 0:
+        return (float("nan"), float("nan"))
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def judged(rec: dict):
+    """(verdict, relative estimate, relative truth, covered) per judged verdict of a record
+    (finite standard error); a group's truth and nominal are its members' means."""
+    for v in rec["verdicts"]:
+        if v["std_error"] is None or v["estimate"] is None:
+            continue
+        true = float(np.mean([rec["truth"][m] for m in v["members"]]))
+        nom = float(np.mean([rec["nominal"][m] for m in v["members"]]))
+        lo, hi = v["ci95"]
+        yield v, v["estimate"] / nom - 1, true / nom - 1, bool(lo <= true <= hi)
+
+
+def case_outcome(rec: dict) -> dict:
+    alarms = [v for v in rec["verdicts"] if v["verdict"] in ALARMS]
+    changed = set(rec["changed"])
+    right = [v for v in alarms if changed & set(v["members"])]
+    wrong = [v for v in alarms if not changed & set(v["members"])]
+    size = [abs(e - t) for v, e, t, _ in judged(rec) if changed & set(v["members"])]
+    return {
+        "alarm": bool(alarms),
+        "correct": bool(right),
+        "wrong": bool(wrong),
+        "size_error": float(np.mean(size)) if size else None,
+    }
+
+
+def _pct(k, n):
+    if n == 0:
+        return "-"
+    lo, hi = wilson(k, n)
+    return f"{100 * k / n:.0f} % ({k}/{n}; {100 * lo:.0f}-{100 * hi:.0f})"
+
+
+def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
+    ok = [r for r in records.values() if "error" not in r]
+    failed = [r for r in records.values() if "error" in r]
+    by_type: dict[str, list] = {}
+    for r in ok:
+        by_type.setdefault(r["case"]["scenario"], []).append(r)
+    rows, summary = [], {"by_type": {}, "by_element": {}}
+    for name in ("healthy", *DEFECTS):
+        recs = by_type.get(name, [])
+        if not recs:
+            continue
+        out = [case_outcome(r) for r in recs]
+        n, alarms = len(out), sum(o["alarm"] for o in out)
+        correct = sum(o["correct"] for o in out if o["alarm"])
+        wrong = sum(o["wrong"] for o in out)
+        sizes = [o["size_error"] for o in out if o["size_error"] is not None]
+        cover = [c for r in recs for _, _, _, c in judged(r)]
+        mae = f"{100 * np.mean(sizes):.1f}" if sizes else "-"
+        time_s = float(np.median([r["wall_s"] for r in recs]))
+        summary["by_type"][name] = {
+            "cases": n, "alarms": alarms, "correct_element": correct,
+            "wrong_element_alarms": wrong, "size_mae": float(np.mean(sizes)) if sizes else None,
+            "covered": int(sum(cover)), "judged": len(cover), "median_wall_s": time_s,
+        }  # fmt: skip
+        if name == "healthy":
+            rows.append(
+                f"| healthy | {n} | false alarm {_pct(alarms, n)} | - | {wrong} | - | "
+                f"{_pct(sum(cover), len(cover))} | {time_s:.0f} |"
+            )
+        else:
+            rows.append(
+                f"| {name} | {n} | {_pct(alarms, n)} | {_pct(correct, alarms)} | {wrong} | {mae} |"
+                f" {_pct(sum(cover), len(cover))} | {time_s:.0f} |"
+            )
+    elem_rows = []
+    for name in (*DEFAULT_CANDIDATES, None):
+        per = [
+            (v, e, t, c)
+            for r in ok
+            for v, e, t, c in judged(r)
+            if (name is None and v["identifiable"] != "alone")
+            or (name is not None and v["name"] == name and v["identifiable"] == "alone")
+        ]
+        if not per:
+            continue
+        label = name or "groups (all)"
+        err = [abs(e - t) for _, e, t, _ in per]
+        cov = sum(c for *_, c in per)
+        summary["by_element"][label] = {
+            "judged": len(per), "covered": int(cov), "mae": float(np.mean(err)),
+            "alarms": sum(v["verdict"] in ALARMS for v, *_ in per),
+        }  # fmt: skip
+        elem_rows.append(
+            f"| {label} | {len(per)} | {100 * np.mean(err):.2f} | {_pct(cov, len(per))} |"
+        )
+    walls = [r["wall_s"] for r in ok]
+    first = [r["wall_s"] for r in ok if r.get("process_case_number") == 1]
+    later = [r["wall_s"] for r in ok if r.get("process_case_number", 1) > 1]
+    summary.update(
+        cases=len(records), errors=len(failed), median_wall_s=float(np.median(walls or [0])),
+        median_first_case_wall_s=float(np.median(first)) if first else None,
+        median_later_case_wall_s=float(np.median(later)) if later else None,
+    )  # fmt: skip
+    imps = ", ".join(cfg["imperfections"]) or "none"
+    md = [
+        f"# Detection benchmark: {len(records)} cases, imperfections: {imps}",
+        "",
+        f"Seed {cfg['seed']}; two runs per case of {cfg['duration_s']:g} s at "
+        f"{cfg['sample_rate_hz']:g} Hz, speeds {cfg['speed_range_m_s'][0]:g}-"
+        f"{cfg['speed_range_m_s'][1]:g} m/s, noise {100 * cfg['noise_range'][0]:g}-"
+        f"{100 * cfg['noise_range'][1]:g} % of each channel's RMS, false-alarm rate "
+        f"{cfg['false_alarm_rate']:g}; {len(failed)} cases failed to run.",
+        "",
+        "| defect | cases | detected | correct element (of detected) | wrong-element alarms | "
+        "size MAE [%] | 95 % coverage | median s |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        *rows,
+        "",
+        "Rates with their Wilson 95 % interval in %. Size MAE: mean absolute error of the "
+        "estimated relative change of the changed element(s) [percentage points]; coverage: "
+        "share of judged elements (finite standard error) whose 95 % interval holds the truth.",
+        "",
+        "| element (identifiable alone) | judged | MAE [%] | 95 % coverage |",
+        "| --- | ---: | ---: | ---: |",
+        *elem_rows,
+        "",
+        f"Wall time per case: median {summary['median_wall_s']:.0f} s; first case of a process "
+        f"(compiles) {_s(summary['median_first_case_wall_s'])}, later cases "
+        f"{_s(summary['median_later_case_wall_s'])}.",
+    ]
+    if failed:
+        md += ["", "Failed cases: " + "; ".join(
+            f"{r['case']['index']} ({r['error'][:120]})" for r in failed)]  # fmt: skip
+    return summary, "\n".join(md) + "\n"
+
+
+def _s(x):
+    return "-" if x is None else f"{x:.0f} s"
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--cases", type=int, default=None, help="cases (default 100; 30 for a mode "
+                   "other than default)")  # fmt: skip
+    p.add_argument("--seed", type=int, default=0)
+    names = ", ".join((*IMPERFECTIONS, *ALIASES))
+    p.add_argument(
+        "--imperfection", default="default", help=f"comma-separated: {names} (default: default)"
+    )
+    p.add_argument("--shard", default="0/1", help="i/n: run the cases with index %% n == i")
+    p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    p.add_argument("--duration", type=float, default=1.0, help="run duration [s] (default 1)")
+    p.add_argument("--sample-rate", type=float, default=100.0, help="[Hz] (default 100)")
+    p.add_argument("--speed-range", default="30,60", help="[m/s] (default 30,60)")
+    p.add_argument("--noise-range", default="0.01,0.03", help="noise std / channel RMS")
+    p.add_argument("--track-spectrum", default="erri-low")
+    p.add_argument("--track-noise", type=float, default=0.3, help="record error RMS [mm]")
+    p.add_argument("--max-offset", type=float, default=0.5, help="record offset bound [m]")
+    p.add_argument("--max-speed-error", type=float, default=0.01, help="relative bound")
+    p.add_argument("--bias", type=float, default=0.05, help="bias bound / channel RMS")
+    p.add_argument("--max-wear", type=float, default=0.3, help="cone slope factor 1 +- this")
+    p.add_argument("--false-alarm-rate", type=float, default=0.05)
+    p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
+    p.add_argument("--report", action="store_true", help="only aggregate the records")
+    args = p.parse_args(argv)
+    args.imperfections = parse_imperfections(args.imperfection)
+    args.speed_range = tuple(float(x) for x in args.speed_range.split(","))
+    args.noise_range = tuple(float(x) for x in args.noise_range.split(","))
+    default_mode = args.imperfections == ALIASES["default"]
+    args.cases = args.cases if args.cases is not None else (100 if default_mode else 30)
+    args.out = args.out or stem(args.imperfections)
+    try:
+        i, n = (int(x) for x in args.shard.split("/"))
+        assert 0 <= i < n
+    except (ValueError, AssertionError):
+        raise SystemExit(f"--shard = {args.shard!r} must be i/n with 0 <= i < n") from None
+    args.shard = (i, n)
+    checks = (
+        ("--cases", args.cases, args.cases >= 1),
+        ("--workers", args.workers, args.workers >= 1),
+        ("--speed-range", args.speed_range, 0 < args.speed_range[0] <= args.speed_range[-1]),
+        ("--noise-range", args.noise_range, 0 < args.noise_range[0] <= args.noise_range[-1]),
+        ("--max-wear", args.max_wear, 0 <= args.max_wear < 1),
+    )
+    for name, value, ok in checks:
+        if not ok:
+            raise SystemExit(f"{name} = {value!r} is out of range")
+    cfg = config_of(args)
+    if not args.report:
+        run_cases(args, cfg)
+    records = load_records(args.out, cfg)
+    records = {k: r for k, r in records.items() if k < args.cases}
+    if not records:
+        raise SystemExit(f"no records of {args.out} yet")
+    summary, md = aggregate(records, cfg)
+    ordered = [records[k] for k in sorted(records)]
+    write_outputs(args.out, ordered, md, extra={"config": cfg, "summary": summary})
+
+
+if __name__ == "__main__":
+    main()
