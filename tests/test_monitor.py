@@ -304,11 +304,14 @@ def test_monitor_raises_no_alarm_on_a_healthy_bogie(healthy):
 
 
 def test_monitor_leaves_out_a_run_the_fit_cannot_explain(healthy, nominal):
-    """Run 1 carries a constant offset of 20 noise standard deviations on every channel (a
-    broken acquisition): no suspension parameter explains it, run 0 is fitted to noise level,
-    so run 1 is left out and every verdict says it used one run of two."""
+    """Run 1 carries a linear drift of 20 noise standard deviations RMS on every channel (a
+    broken acquisition; a constant offset would be a sensor bias, which `monitor` removes): no
+    suspension parameter explains it, run 0 is fitted to noise level, so run 1 is left out and
+    every verdict says it used one run of two."""
     noise = np.array([float(s.noise_std) for s in default_sensor_layout(nominal)])
-    broken = eqx.tree_at(lambda m: m.data, healthy[1], np.asarray(healthy[1].data) + 20 * noise)
+    data = np.asarray(healthy[1].data)
+    drift = np.sqrt(3.0) * np.linspace(-1.0, 1.0, data.shape[0])[:, None]  # RMS 1
+    broken = eqx.tree_at(lambda m: m.data, healthy[1], data + 20 * noise * drift)
     result = monitor([healthy[0], broken])
     assert [r.used for r in result.runs] == [True, False]
     assert "does not explain" in result.runs[1].reason

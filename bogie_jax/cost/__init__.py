@@ -6,6 +6,10 @@ one residual Jacobian (`residual_jacobian`) and one covariance computation
 from ._covariance import (
     Covariance as Covariance,
     covariance_from_jacobian as covariance_from_jacobian,
+    hac_bandwidth as hac_bandwidth,
+    long_run_covariance as long_run_covariance,
+    sandwich_covariance as sandwich_covariance,
+    score_series as score_series,
 )
 from ._jacobian import forward_mode as forward_mode, residual_jacobian as residual_jacobian
 from ._joint import (

@@ -32,11 +32,24 @@ from ._imperfections import (
     with_speed_error as with_speed_error,
     worn_wheels as worn_wheels,
 )
-from ._monitor import NOISE_MODES as NOISE_MODES, monitor as monitor
+from ._monitor import (
+    COVARIANCES as COVARIANCES,
+    NOISE_MODES as NOISE_MODES,
+    REWEIGHTS as REWEIGHTS,
+    SETTLED as SETTLED,
+    monitor as monitor,
+)
 from ._result import (
     FitSummary as FitSummary,
     MonitorResult as MonitorResult,
     RunStatus as RunStatus,
+)
+from ._robust import (
+    S2_FLOOR as S2_FLOOR,
+    RunChannels as RunChannels,
+    channel_variances as channel_variances,
+    channel_weights as channel_weights,
+    leverage as leverage,
 )
 from ._trend import Trend as Trend, trend as trend, two_sided_p_value as two_sided_p_value
 from ._verdict import (

@@ -7,14 +7,31 @@ Steps (each documented where it is done):
    parameters, ln p of every candidate) and its residual Jacobian at the nominal bogie: one
    compiled program (`_host_fit.py`), whose first evaluation gives the Fisher information;
    a run whose simulation fails there is left out (and reported);
-3. the identifiability rule (`_elements.py`): elements alone, groups, or not identifiable;
-4. a Levenberg-Marquardt fit of the identifiable coordinates (the others held at nominal),
-   with the same program; a run whose simulation fails at the estimate, or that the joint fit
-   does not explain while it explains another (`_checks.failed_runs`), is left out and the
-   fit repeated without it (same program: the run's residuals are masked);
-5. the covariance of the estimates (`bogie_jax.cost.covariance_from_jacobian` on the final
-   Jacobian) and a verdict per coordinate by `judge` (`_verdict.py`), the decision z set by
-   `false_alarm_rate` over the judged coordinates (Bonferroni).
+3. sensor bias (`remove_bias`, default on; `_robust.py`): a constant per run and channel,
+   eliminated by variable projection: r and every column of J are centred over time per run
+   and channel (present samples only) after every evaluation, on the host;
+4. the identifiability rule (`_elements.py`) on the bias-free Jacobian: elements alone,
+   groups, or not identifiable;
+5. a Levenberg-Marquardt fit of the identifiable coordinates (the others held at nominal),
+   with the same program, weighted by the sensors' nominal noise; a run whose simulation fails
+   at the estimate, or that the joint fit does not explain while it explains another
+   (`_checks.failed_runs`), is left out and the fit repeated without it (same program: the
+   run's residuals are masked);
+6. per-channel noise (`noise="per-channel"`, the default; `_robust.py`): the residual variance
+   of every run and channel is estimated from the fit (degrees of freedom corrected), the rows
+   reweighted by 1 / sqrt of it (floored at 1e-4 of the assumed variance) and the fit repeated
+   from its estimate with the same program, up to `REWEIGHTS` times, until no channel's weight
+   changes by more than `SETTLED`;
+7. the covariance of the estimates (`covariance="sandwich"`, the default:
+   `bogie_jax.cost.sandwich_covariance`, Newey-West with the Bartlett kernel and Andrews'
+   bandwidth, consistent when the misfit of model and track is smooth in time and differs
+   between channels; never below the Gauss-Newton standard errors with the estimated noise
+   variance; `"gauss-newton"`: `bogie_jax.cost.covariance_from_jacobian`) and a verdict per
+   coordinate by `judge` (`_verdict.py`), the decision z set by `false_alarm_rate` over the
+   judged coordinates (Bonferroni).
+
+Steps 3, 6 and 7 are numpy on the residuals and Jacobian the compiled program returns: nothing
+more is compiled.
 """
 
 import time
@@ -24,17 +41,28 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..cost import covariance_from_jacobian, make_joint_objective, residual_jacobian
+from ..cost import (
+    covariance_from_jacobian,
+    long_run_covariance,
+    make_joint_objective,
+    residual_jacobian,
+    sandwich_covariance,
+    score_series,
+)
 from ..params import BogieParams, ModelOptions, manchester_benchmark
 from ..simulation import SolveSettings
 from ._checks import RUN_MISFIT, check_inputs, failed_runs, tolerance_bands
 from ._elements import MAX_CORRELATION, RESOLUTION, check_candidates, classify_elements
 from ._host_fit import levenberg_marquardt
 from ._result import FitSummary, MonitorResult, RunStatus
+from ._robust import RunChannels, channel_variances, channel_weights
 from ._verdict import check_false_alarm_rate, decision_z, judge
 
 
-NOISE_MODES = ("max", "nominal", "estimated")
+NOISE_MODES = ("per-channel", "max", "nominal", "estimated")
+COVARIANCES = ("sandwich", "gauss-newton")
+REWEIGHTS = 3  # at most this many refits with per-channel weights
+SETTLED = 0.1  # the weights have settled when none changes by more than this fraction
 _JACOBIAN = eqx.filter_jit(residual_jacobian)
 
 
@@ -46,7 +74,10 @@ def monitor(
     candidates=None,
     band=None,
     false_alarm_rate: float = 0.05,
-    noise: str = "max",
+    noise: str = "per-channel",
+    covariance: str = "sandwich",
+    remove_bias: bool = True,
+    bandwidth: float | None = None,
     resolution: float = RESOLUTION,
     max_correlation: float = MAX_CORRELATION,
     max_steps: int = 30,
@@ -71,24 +102,37 @@ def monitor(
       relative half-width for all, or a mapping `{name: ToleranceBand or half-width}` (element,
       group or tied names; others default).
     - `false_alarm_rate`: the probability of any false alarm on a healthy bogie (`judge`).
-    - `noise`: residual variance of the covariance: `"nominal"` (1: the sensors' noise_std
-      weights are right), `"estimated"` (2 J / (m - n) from the fit), `"max"` (default: the
-      larger of both: never more confident than the sensors allow, wider when the fit leaves
-      more than noise).
+    - `noise`: the noise model of the weights and of the residual variance sigma^2:
+      `"per-channel"` (default: each run and channel's noise variance is estimated from the
+      fit's residuals and the fit repeated with those weights, module docstring step 6;
+      sigma^2 = 2 J / (m - n - b) of the reweighted fit, b the bias parameters); with the
+      sensors' nominal `noise_std` weights: `"nominal"` (sigma^2 = 1), `"estimated"`
+      (2 J / (m - n - b)), `"max"` (the larger of both).
+    - `covariance`: `"sandwich"` (default: `bogie_jax.cost.sandwich_covariance`, right when the
+      misfit is autocorrelated in time or differs between channels) or `"gauss-newton"`
+      (sigma^2 (J^T J)^+). Rule: a sandwich standard error is never reported below the
+      Gauss-Newton one with the `noise` mode's sigma^2.
+    - `remove_bias`: eliminate a constant sensor bias per run and channel (default `True`;
+      module docstring step 3). Costs one degree of freedom per run and channel.
+    - `bandwidth`: the sandwich's Bartlett bandwidth in samples (>= 1), default `None`:
+      Andrews' AR(1) plug-in rule (`bogie_jax.cost.hac_bandwidth`) on the prewhitened
+      scores (`bogie_jax.cost.long_run_covariance`).
     - `resolution`, `max_correlation`: the identifiability rule (`_elements.py`).
-    - `max_steps`: Levenberg-Marquardt steps; `run_misfit`: the rule that leaves a run out
-      after the fit (`_checks.failed_runs`: a run whose simulation fails, or whose residuals
-      stay above sqrt(run_misfit) times the sensors' noise while another run is fitted
-      `run_misfit` times better); the verdicts then say they used fewer runs;
+    - `max_steps`: Levenberg-Marquardt steps per fit; `run_misfit`: the rule that leaves a run
+      out after the first fit (`_checks.failed_runs`: a run whose simulation fails, or whose
+      residuals stay above sqrt(run_misfit) times the sensors' nominal noise while another run
+      is fitted `run_misfit` times better); the verdicts then say they used fewer runs;
     - `options`, `settings`, `weights`: as `make_objective`; `progress`: a callable taking one
       line of text, or `None`.
 
-    **Returns:** a `MonitorResult`.
+    **Returns:** a `MonitorResult` (its `fit` records the noise mode, the per-channel noise
+    levels, the covariance kind and bandwidth).
 
     **Raises:** `ValueError` before anything is compiled: no measurements, mixed sensor
     layouts, a track count that differs from the measurement count, unknown or repeated
-    candidates, a band of zero width, a false-alarm rate outside (0, 0.5), an unknown `noise`.
-    `RuntimeError` if the simulation fails for every run.
+    candidates, a band of zero width, a false-alarm rate outside (0, 0.5), an unknown `noise`
+    or `covariance`, a `bandwidth` below 1. `RuntimeError` if the simulation fails for every
+    run.
     """
     tic = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
@@ -96,6 +140,10 @@ def monitor(
     check_false_alarm_rate(false_alarm_rate)
     if noise not in NOISE_MODES:
         raise ValueError(f"`noise` = {noise!r} must be one of {', '.join(NOISE_MODES)}")
+    if covariance not in COVARIANCES:
+        raise ValueError(f"`covariance` = {covariance!r} must be one of {', '.join(COVARIANCES)}")
+    if bandwidth is not None and not float(bandwidth) >= 1:
+        raise ValueError(f"`bandwidth` = {bandwidth!r} must be None or >= 1 (samples)")
     if not 0 < resolution <= 1 or not 0 < max_correlation <= 1:
         raise ValueError(
             f"`resolution` = {resolution!r} and `max_correlation` = {max_correlation!r} must lie "
@@ -146,27 +194,40 @@ def monitor(
         timings["jacobian_s"] = time.perf_counter() - t0
     say("Fisher information: " + ", ".join(f"run {k} left out" for k in np.flatnonzero(~active)))
 
-    # 3. identifiability
+    # 3. the bias projection (and, step 6, the channel weights) on the host
+    n_channels = len(measurements[0].channels)
+    mask = np.concatenate([np.isfinite(np.asarray(m.data)).reshape(-1) for m in measurements])
+    layout = lambda: RunChannels.of(slices, n_channels, mask, active.copy())
+    project = layout().centre if remove_bias else (lambda x: x)
+    n_bias = layout().n_bias if remove_bias else 0
+
+    # 4. identifiability
     z_rule = decision_z(false_alarm_rate, len(names))
     coords, statuses = classify_elements(
-        params, names, jac0, bands, band, z_rule,
+        params, names, project(jac0), bands, band, z_rule,
         resolution=resolution, max_correlation=max_correlation,
     )  # fmt: skip
     say(f"identifiable: {', '.join(c.name for c in coords) or 'none'}")
 
-    # 4. fit of the identifiable coordinates
+    # 5. fit of the identifiable coordinates
     a = np.zeros((len(names), len(coords)))
     for j, c in enumerate(coords):
         a[list(c.members), j] = 1.0
+    rows = np.ones(mask.shape)  # row weights (step 6)
+    last = {}  # the last evaluation, reused when a refit starts where the previous fit ended
 
     def evaluate_phi(phi):
-        r, jac = evaluate(a @ phi)
-        return r, jac @ a
+        key = np.asarray(phi, dtype=float).tobytes()
+        if last.get("key") != key:
+            r, jac = evaluate(a @ phi)
+            last.update(key=key, r=project(r), jac=project(jac @ a))
+        return last["r"] * rows, last["jac"] * rows[:, None]
 
     t0 = time.perf_counter()
-    fit = None
+    fit, fits = None, []
     if coords:
         fit = levenberg_marquardt(evaluate_phi, np.zeros(len(coords)), max_steps=max_steps)
+        fits.append(fit)
         while True:
             bad, why = failed_runs(fit.r, slices, active, n_obs_runs, run_misfit)
             if not bad:
@@ -175,16 +236,47 @@ def monitor(
                 active[k], reasons[k] = False, why[k]
             say(f"left out: {'; '.join(f'run {k} ({why[k]})' for k in bad)}; fitting again")
             objective = with_active(objective)
+            last.clear()
+            n_bias = layout().n_bias if remove_bias else 0
             fit = levenberg_marquardt(evaluate_phi, np.zeros(len(coords)), max_steps=max_steps)
+            fits.append(fit)
+
+    # 6. per-channel noise: reweight and refit from the estimate
+    w = np.ones((n_runs, n_channels))
+    s2_channels, reweights = None, 0
+    if coords and fit.status != "failed":
+        s2_channels = channel_variances(fit.r, fit.jac, layout(), remove_bias=remove_bias)
+        if noise == "per-channel":
+            dof = layout().n_present - n_bias - len(coords)
+            reference = float(fit.r @ fit.r) / dof if dof > 0 else 1.0
+            for _ in range(REWEIGHTS):
+                new = channel_weights(s2_channels, reference=reference)
+                if np.nanmax(np.abs(new / w - 1.0)) <= SETTLED:
+                    break
+                w = new
+                rows[:] = layout().expand(w)
+                spread = np.sqrt(s2_channels[active])
+                say(
+                    f"per-channel noise {np.nanmin(spread):.3g} to {np.nanmax(spread):.3g} of "
+                    "the assumed; fitting again with these weights"
+                )
+                refit = levenberg_marquardt(evaluate_phi, fit.phi, max_steps=max_steps)
+                fits.append(refit)
+                reweights += 1
+                if refit.status == "failed":
+                    break
+                fit = refit
+                s2_channels = channel_variances(
+                    fit.r, fit.jac, layout(), remove_bias=remove_bias, weights=w
+                )
     timings["fit_s"] = time.perf_counter() - t0
 
-    # 5. covariance and verdicts
-    n_obs = int(
-        sum(np.isfinite(np.asarray(measurements[k].data)).sum() for k in np.flatnonzero(active))
-    )
+    # 7. covariance and verdicts
+    used = layout()
     verdicts, summary = _verdicts(
-        coords, statuses, fit, bands, n_obs, noise, false_alarm_rate, active, n_runs
-    )
+        coords, statuses, fit, fits, bands, used, n_bias, noise, covariance, bandwidth,
+        false_alarm_rate, active, n_runs, s2_channels, remove_bias, reweights,
+    )  # fmt: skip
     runs = tuple(
         RunStatus(
             index=k,
@@ -193,7 +285,7 @@ def monitor(
             track=m.track.describe() if m.track is not None else "",
             used=bool(active[k]),
             reason=reasons[k],
-            residual_rms=float(np.sqrt(np.mean(fit.r[slices[k]] ** 2)))
+            residual_rms=float(np.sqrt(np.mean((fit.r[slices[k]] / rows[slices[k]]) ** 2)))
             if fit is not None and active[k]
             else float("nan"),
         )
@@ -210,38 +302,70 @@ def monitor(
     )
 
 
-def _verdicts(coords, statuses, fit, bands, n_obs, noise, alpha, active, n_runs):
+def _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, values):
+    """The covariance of the fitted coordinates (scaled to parameter values), the
+    Gauss-Newton one with `sigma2`, and the sandwich bandwidth (NaN for Gauss-Newton)."""
+    gn = covariance_from_jacobian(fit.jac, sigma2=sigma2, scale=values)
+    if kind == "gauss-newton":
+        return gn, gn, float("nan")
+    runs = [sl for k, sl in enumerate(layout.slices) if layout.active[k]]
+    if bandwidth is None:
+        scores = score_series(fit.jac, fit.r, runs, layout.n_channels)
+        bandwidth = long_run_covariance(scores)[1]
+    cov = sandwich_covariance(
+        fit.jac, fit.r, runs=runs, n_channels=layout.n_channels, bandwidth=bandwidth,
+        n_nuisance=n_bias, floor_sigma2=sigma2, scale=values,
+    )  # fmt: skip
+    return cov, gn, float(bandwidth)
+
+
+def _verdicts(
+    coords, statuses, fit, fits, bands, layout, n_bias, noise, kind, bandwidth, alpha, active,
+    n_runs, s2_channels, remove_bias, reweights,
+):  # fmt: skip
     used = f"{int(active.sum())} of {n_runs} runs"
     verdicts = []
     nan = float("nan")
     summary = FitSummary(
         names=(), status="no identifiable element", steps=0, evaluations=0, cost=nan,
         noise_variance=nan, sigma2=nan, rank=0, condition_number=nan, runs_used=int(active.sum()),
+        noise=noise, covariance=kind, bias_removed=bool(remove_bias),
     )  # fmt: skip
     if coords:
-        m, n = n_obs, len(coords)
-        s2 = 2 * fit.cost / (m - n) if m > n else float("nan")
-        sigma2 = {"nominal": 1.0, "estimated": s2, "max": max(1.0, s2)}[noise]
+        m, n = layout.n_present, len(coords)
+        dof = m - n - n_bias
+        s2 = 2 * fit.cost / dof if dof > 0 else float("nan")
+        sigma2 = {"nominal": 1.0, "estimated": s2, "max": max(1.0, s2), "per-channel": s2}[noise]
         values = np.array([c.nominal for c in coords]) * np.exp(fit.phi)
-        cov = covariance_from_jacobian(fit.jac, sigma2=sigma2, scale=values)
-        se = np.asarray(cov.std_errors)
+        cov, gn, width = _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, values)
+        se, se_gn = np.asarray(cov.std_errors), np.asarray(gn.std_errors)
         z = decision_z(alpha, len(coords))
-        for c, value, err in zip(coords, values, se):
+        for c, value, err, err_gn in zip(coords, values, se, se_gn):
             v = judge(c.name, value, err, c.band, z=z, identifiable=fit.status != "failed")
             v.evidence.update(
                 runs_used=used,
                 identifiable=("alone" if len(c.members) == 1 else "as a group"),
                 members=[s.name for i, s in enumerate(statuses) if i in c.members],
                 fit_status=fit.status,
+                covariance=kind,
+                std_error_gauss_newton=float(err_gn),
             )
             if not active.all():
                 v.evidence["note"] = f"judged on {used}: see the runs left out"
             verdicts.append(v)
+        noise_levels = ()
+        if s2_channels is not None:
+            noise_levels = tuple(
+                tuple(float(x) for x in np.sqrt(s2_channels[k])) if active[k] else ()
+                for k in range(n_runs)
+            )
         summary = FitSummary(
-            names=tuple(c.name for c in coords), status=fit.status, steps=fit.steps,
-            evaluations=fit.evaluations, cost=fit.cost, noise_variance=s2, sigma2=sigma2,
-            rank=int(cov.rank), condition_number=float(cov.condition_number),
-            runs_used=int(active.sum()), costs=fit.costs,
+            names=tuple(c.name for c in coords), status=fit.status,
+            steps=sum(f.steps for f in fits), evaluations=sum(f.evaluations for f in fits),
+            cost=fit.cost, noise_variance=s2, sigma2=sigma2, rank=int(gn.rank),
+            condition_number=float(gn.condition_number), runs_used=int(active.sum()),
+            costs=fit.costs, noise=noise, covariance=kind, bandwidth=width,
+            bias_removed=bool(remove_bias), reweights=reweights, channel_noise=noise_levels,
         )  # fmt: skip
     z = decision_z(alpha, max(len(coords), 1))
     for s in statuses:

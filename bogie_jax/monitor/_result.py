@@ -39,10 +39,16 @@ class RunStatus:
 @dataclasses.dataclass(frozen=True)
 class FitSummary:
     """The joint fit: fitted coordinate `names`, LM `status` (`converged`, `max_steps`,
-    `failed`), `steps`, `evaluations` of the residual Jacobian, `cost` = 1/2 |r|^2,
-    `noise_variance` 2 cost / (m - n), `sigma2` used in the covariance (`monitor`'s `noise`),
-    `rank` and `condition_number` of the Jacobian, `runs_used`, `costs` after each accepted
-    step."""
+    `failed`) of the last fit, `steps` and `evaluations` of the residual Jacobian over all
+    fits, `cost` = 1/2 |r|^2 of the last fit (in its weights), `noise_variance`
+    2 cost / (m - n - b) (b: bias parameters), `sigma2` of the Gauss-Newton covariance
+    (`monitor`'s `noise`), `rank` and `condition_number` of the Jacobian, `runs_used`, `costs`
+    after each accepted step of the last fit; `noise` mode, `covariance` kind (`sandwich` or
+    `gauss-newton`) and the sandwich's Bartlett `bandwidth` [samples], `bias_removed`,
+    `reweights` (refits with per-channel weights), `channel_noise`: per run (empty if left
+    out), per channel, the residual standard deviation at the estimate as a multiple of the
+    sensor's assumed `noise_std` (degrees of freedom corrected; 1: the assumed noise is
+    right)."""
 
     names: tuple[str, ...]
     status: str
@@ -55,6 +61,12 @@ class FitSummary:
     condition_number: float
     runs_used: int
     costs: tuple[float, ...] = ()
+    noise: str = ""
+    covariance: str = "gauss-newton"
+    bandwidth: float = float("nan")
+    bias_removed: bool = False
+    reweights: int = 0
+    channel_noise: tuple[tuple[float, ...], ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
