@@ -30,7 +30,7 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 - `channel-noise` (e): the layout keeps the sensors' nominal noise levels (the fit's weights
   are wrong by the ratio of the true f * RMS to the nominal noise_std, channel by channel);
 - `worn-wheels` (f): the true cone slope is nominal times a factor uniform in [0.7, 1.3];
-- `none`: no imperfection; `all`: (a)-(f).
+- `none`: no imperfection; `all`: (a)-(f); `offset` is another name of `track`.
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal)`, default
 arguments otherwise): truth, verdicts, estimates, standard errors, 95 % intervals, fit status,
@@ -102,7 +102,12 @@ from benchmarks._common import RESULTS, write_outputs  # noqa: E402
 
 
 IMPERFECTIONS = ("track", "speed", "bias", "nonlinear", "channel-noise", "worn-wheels")
-ALIASES = {"default": ("track", "speed", "bias"), "all": IMPERFECTIONS, "none": ()}
+ALIASES = {
+    "default": ("track", "speed", "bias"),
+    "all": IMPERFECTIONS,
+    "none": (),
+    "offset": ("track",),  # the track record: its error and its offset
+}
 HEADLINE = "yaw-damper-left-50"
 DEFECTS = tuple(n for n in DEFECT_SCENARIOS if n != "healthy")
 WEIGHTS = np.array([3.0 if n == HEADLINE else 1.0 for n in DEFECTS])
