@@ -1,7 +1,8 @@
 """The least-squares objective (paper eq. 12) over selected parameters in unconstrained
 coordinates: the single definition used by gradients, identification and sensitivity, with its
 one residual Jacobian (`residual_jacobian`) and one covariance computation
-(`covariance_from_jacobian`)."""
+(`covariance_from_jacobian`); per-run position and speed corrections fitted as nuisance
+parameters through `Objective.with_run_corrections()` (`CorrectedObjective`, `RunCorrections`)."""
 
 from ._covariance import (
     Covariance as Covariance,
@@ -25,6 +26,10 @@ from ._lead_in import (
 )
 from ._make import make_objective as make_objective
 from ._objective import Objective as Objective, ResidualModel as ResidualModel
+from ._run_corrections import (
+    CorrectedObjective as CorrectedObjective,
+    RunCorrections as RunCorrections,
+)
 from ._scenario import synthetic_objective as synthetic_objective
 from ._selection import (
     ParameterSelection as ParameterSelection,

@@ -22,8 +22,9 @@ def forward_mode(objective):
 def residual_jacobian(objective, theta, args=None):
     """`(r, J)`: residuals `r` (m,) and their Jacobian `J = dr/dtheta` (m, n) at `theta` (n,).
 
-    `objective`: anything with `residuals(theta, args)` (an `Objective`, switched to forward
-    mode; a `bogie_jax.identify.LeastSquaresProblem`, with its `args`). Pure JAX: jit and vmap
+    `objective`: anything with `residuals(theta, args)` (an `Objective` or a
+    `CorrectedObjective` over [theta, run corrections], switched to forward mode; a
+    `bogie_jax.identify.LeastSquaresProblem`, with its `args`). Pure JAX: jit and vmap
     it with the objective as an argument (`eqx.filter_jit`).
     """
     objective = forward_mode(objective)

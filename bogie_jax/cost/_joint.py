@@ -17,6 +17,7 @@ run in the program).
 """
 
 import dataclasses
+import math
 
 import equinox as eqx
 import jax
@@ -29,6 +30,7 @@ from ..params import BogieParams, ModelOptions
 from ..simulation import SolveSettings
 from ._make import make_objective
 from ._objective import Objective, ResidualModel
+from ._run_corrections import RunCorrections, check_corrections
 
 
 class JointResidualModel(eqx.Module):
@@ -42,7 +44,9 @@ class JointResidualModel(eqx.Module):
     - `active` (n_runs,): a run with `False` contributes zero residuals (and zero Jacobian
       rows): a run can be left out without changing the compiled program;
     - `run_sizes`: the number of residuals of each run (static); `vmapped`: whether the runs
-      are evaluated by one `vmap` (static).
+      are evaluated by one `vmap` (static);
+    - `corrections`: `RunCorrections` (n_runs,) applied to every run (`with_corrections`),
+      mapped with the stacked run leaves; `None`: none.
     """
 
     params: BogieParams
@@ -52,6 +56,7 @@ class JointResidualModel(eqx.Module):
     shared: object  # ResidualModel tree (vmapped) or tuple of ResidualModels (loop)
     run_sizes: tuple[int, ...] = eqx.field(static=True)
     vmapped: bool = eqx.field(static=True)
+    corrections: RunCorrections | None = None
 
     @property
     def n_runs(self) -> int:
@@ -67,14 +72,31 @@ class JointResidualModel(eqx.Module):
         ends = np.cumsum((0, *self.run_sizes))
         return tuple(slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:]))
 
+    def with_corrections(self, corrections: RunCorrections) -> "JointResidualModel":
+        """The runs at `start_position + position_offset` [m] and `speed *
+        exp(log_speed_factor)` [m/s] (`RunCorrections` of shape (n_runs,), added to any held
+        already); traceable: the values are traced, one program for all of them."""
+        check_corrections(corrections, self.n_runs)
+        if self.corrections is not None:
+            corrections = self.corrections + corrections
+        return dataclasses.replace(self, corrections=corrections)
+
+    def _run(self, model: ResidualModel, corrections) -> ResidualModel:
+        """One run with this model's `settings` and its corrections (if any)."""
+        model = dataclasses.replace(model, settings=self.settings)
+        return model if corrections is None else model.with_corrections(corrections)
+
+    def _run_corrections(self, k: int):
+        return None if self.corrections is None else jax.tree.map(lambda x: x[k], self.corrections)
+
     def runs(self) -> tuple[ResidualModel, ...]:
-        """The single-run models (with this model's `settings`)."""
+        """The single-run models (with this model's `settings` and corrections)."""
         if not self.vmapped:
-            return tuple(dataclasses.replace(m, settings=self.settings) for m in self.shared)
+            return tuple(self._run(m, self._run_corrections(k)) for k, m in enumerate(self.shared))
         return tuple(
-            dataclasses.replace(
+            self._run(
                 eqx.combine(jax.tree.map(lambda x: x[k], self.batched), self.shared),
-                settings=self.settings,
+                self._run_corrections(k),
             )
             for k in range(self.n_runs)
         )
@@ -90,11 +112,10 @@ class JointResidualModel(eqx.Module):
         """`fn(run_model)` for every run: stacked (vmapped) or a tuple (loop)."""
         if self.vmapped:
 
-            def one(batched):
-                model = eqx.combine(batched, self.shared)
-                return fn(dataclasses.replace(model, settings=self.settings))
+            def one(batched, corrections):
+                return fn(self._run(eqx.combine(batched, self.shared), corrections))
 
-            return jax.vmap(one)(self.batched)
+            return jax.vmap(one)(self.batched, self.corrections)
         return tuple(fn(m) for m in self.runs())
 
     def __call__(self, params: BogieParams):
@@ -127,6 +148,21 @@ def _same(a, b) -> bool:
         return bool(a == b)
     except Exception:  # noqa: BLE001 - objects without a boolean equality are not the same
         return False
+
+
+def _same_sampling(model: ResidualModel, first: ResidualModel) -> ResidualModel:
+    """`model` with `first`'s (static) `duration` and `sample_rate` where they agree to
+    rounding (1e-9 relative) and the sample counts are equal: windows at other start positions
+    and speeds carry other rounding in their times (e.g. 0.49999999999999994 s against 0.5 s),
+    which would otherwise split runs of one structure into a loop of solves."""
+    close = lambda a, b: math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12)
+    if (
+        model.data.shape == first.data.shape
+        and close(model.sample_rate, first.sample_rate)
+        and close(model.duration, first.duration)
+    ):
+        return dataclasses.replace(model, duration=first.duration, sample_rate=first.sample_rate)
+    return model
 
 
 def _pad_track(model: ResidualModel, n: int) -> ResidualModel:
@@ -193,6 +229,7 @@ def joint_residual_model(models, *, vmap: bool | None = None) -> JointResidualMo
             )
     # one settings and params object everywhere, so that these leaves are shared, not stacked
     models = tuple(dataclasses.replace(m, params=params, settings=settings) for m in models)
+    models = tuple(_same_sampling(m, models[0]) for m in models)
     sizes = tuple(int(m.n_residuals) for m in models)
     active = np.ones(len(models), dtype=bool)
     stacked = None if vmap is False or len(models) == 1 else _stack_runs(models)

@@ -22,6 +22,7 @@ from ..model import build_model
 from ..params import BogieParams, ModelOptions
 from ..simulation import SolveSettings, Trajectory, simulate
 from ..track import TrackIrregularity
+from ._run_corrections import CorrectedObjective, RunCorrections, check_corrections
 from ._selection import ParameterSelection
 
 
@@ -70,6 +71,23 @@ class ResidualModel(eqx.Module):
     @property
     def n_residuals(self) -> int:
         return self.data.size
+
+    @property
+    def n_runs(self) -> int:
+        """One run (`RunCorrections` of one entry apply to it)."""
+        return 1
+
+    def with_corrections(self, corrections: RunCorrections) -> "ResidualModel":
+        """This run at `start_position + position_offset` [m] and `speed *
+        exp(log_speed_factor)` [m/s] (`RunCorrections` of one run, leaves of shape () or
+        (1,)); sample spacing, duration and `lead_in` [m] unchanged. Traceable."""
+        if not isinstance(corrections, RunCorrections) or corrections.n_runs != 1:
+            check_corrections(corrections, 1)  # raises, naming the problem
+        offset = jnp.reshape(corrections.position_offset, ())
+        factor = jnp.exp(jnp.reshape(corrections.log_speed_factor, ()))
+        return dataclasses.replace(
+            self, start_position=self.start_position + offset, speed=self.speed * factor
+        )
 
     def simulate(self, params: BogieParams) -> Trajectory:
         """The simulated run at parameters `params`."""
@@ -203,3 +221,9 @@ class Objective(eqx.Module):
         """This objective differentiated in forward mode (`SolveSettings.forward_mode`), as
         residual Jacobians need; the library switches by itself where it needs it."""
         return self.with_settings(self.settings.forward_mode())
+
+    def with_run_corrections(self) -> CorrectedObjective:
+        """The objective over x = [theta (n), position_offset (R) [m], log_speed_factor (R)]:
+        each run's position on its track record and its speed fitted as nuisance parameters
+        (`bogie_jax.cost.CorrectedObjective`); `residuals` here is unchanged."""
+        return CorrectedObjective(self)
