@@ -189,11 +189,34 @@ def _rules(record) -> list[str]:
         "- Identifiable elements are chosen from the Fisher information of these runs at the "
         "nominal bogie; elements the sensors cannot separate are judged as their group and held "
         "at nominal otherwise.",
-        f"- Standard errors: residual variance {_g(fit.get('sigma2'), 3)} (the larger of the "
-        f"sensors' nominal noise, 1, and the fit's own estimate {_g(fit.get('noise_variance'), 3)}"
-        "); the 95 % interval is estimate +- 1.96 standard errors.",
+        _standard_errors(fit),
         f"- Full rules: {RULES}.",
     ]
+
+
+def _standard_errors(fit) -> str:
+    """The rule behind the standard errors, from the fit record (`monitor`'s `noise` and
+    `covariance`)."""
+    noise, kind = fit.get("noise") or "max", fit.get("covariance") or "gauss-newton"
+    sigma2 = {
+        "per-channel": "each channel's noise estimated from the residuals and the fit reweighted",
+        "nominal": "the sensors' nominal noise",
+        "estimated": "the fit's own estimate",
+        "max": "the larger of the sensors' nominal noise, 1, and the fit's own estimate",
+    }.get(noise, noise)
+    bias = "sensor bias removed per run and channel; " if fit.get("bias_removed") else ""
+    if kind == "sandwich":
+        how = (
+            f"sandwich covariance (Newey-West, Bartlett bandwidth {_g(fit.get('bandwidth'), 3)} "
+            "samples: misfit correlated in time allowed), never below Gauss-Newton with "
+            f"residual variance {_g(fit.get('sigma2'), 3)}"
+        )
+    else:
+        how = f"Gauss-Newton with residual variance {_g(fit.get('sigma2'), 3)}"
+    return (
+        f"- Standard errors: {bias}{how} ({sigma2}); the 95 % interval is estimate +- 1.96 "
+        "standard errors."
+    )
 
 
 def write_report(

@@ -253,7 +253,7 @@ def monitor(
                 new = channel_weights(s2_channels, reference=reference)
                 if np.nanmax(np.abs(new / w - 1.0)) <= SETTLED:
                     break
-                w = new
+                previous, w = w, new
                 rows[:] = layout().expand(w)
                 spread = np.sqrt(s2_channels[active])
                 say(
@@ -263,7 +263,9 @@ def monitor(
                 refit = levenberg_marquardt(evaluate_phi, fit.phi, max_steps=max_steps)
                 fits.append(refit)
                 reweights += 1
-                if refit.status == "failed":
+                if refit.status == "failed":  # keep the last fit and its weights
+                    w = previous
+                    rows[:] = layout().expand(w)
                     break
                 fit = refit
                 s2_channels = channel_variances(
