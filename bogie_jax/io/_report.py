@@ -162,14 +162,17 @@ def _verdict_table(rows) -> list[str]:
 
 def _runs_table(runs) -> list[str]:
     lines = [
-        "| run | speed [m/s] | duration [s] | track | used | residual RMS [noise std] | note |",
-        "|---:|---:|---:|---|---|---:|---|",
+        "| run | speed [m/s] | duration [s] | track | used | residual RMS [noise std] | "
+        "fitted track offset [m] | fitted speed factor | note |",
+        "|---:|---:|---:|---|---|---:|---:|---:|---|",
     ]
     for r in runs:
+        fitted = r.get("corrected")
         lines.append(
             f"| {r['index']} | {_g(r['speed'])} | {_g(r['duration'])} | {r['track']} | "
             f"{'yes' if r['used'] else 'no'} | {_g(r.get('residual_rms'), 3)} | "
-            f"{r.get('reason') or ''} |"
+            f"{_g(r.get('position_offset'), 3) if fitted else '-'} | "
+            f"{_g(r.get('speed_factor'), 5) if fitted else '-'} | {r.get('reason') or ''} |"
         )
     return lines
 

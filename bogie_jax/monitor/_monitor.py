@@ -1,22 +1,27 @@
+# long: the monitoring pipeline in its documented steps, with its verdict and covariance helpers.
 """`monitor`: verdicts per suspension element from one or several measurement runs of a bogie.
 
 Steps (each documented where it is done):
 1. input checks, before anything is compiled: at least one measurement, one sensor layout
    (and channel list) for all of them, one track per measurement, valid bands and names;
 2. the joint objective of all runs (`bogie_jax.cost.make_joint_objective`, shared suspension
-   parameters, ln p of every candidate) and its residual Jacobian at the nominal bogie: one
-   compiled program (`_host_fit.py`), whose first evaluation gives the Fisher information;
-   a run whose simulation fails there is left out (and reported);
+   parameters, ln p of every candidate and of the `nuisance` parameters, default the wheels'
+   cone slope; with `run_corrections`, default on, each run's track-position offset and log
+   speed factor: `bogie_jax.cost.CorrectedObjective`, `_nuisance.py`) and its residual
+   Jacobian at the nominal bogie: one compiled program (`_host_fit.py`), whose first
+   evaluation gives the Fisher information; a run whose simulation fails there is left out
+   (and reported);
 3. sensor bias (`remove_bias`, default on; `_robust.py`): a constant per run and channel,
    eliminated by variable projection: r and every column of J are centred over time per run
    and channel (present samples only) after every evaluation, on the host;
-4. the identifiability rule (`_elements.py`) on the bias-free Jacobian: elements alone,
-   groups, or not identifiable;
-5. a Levenberg-Marquardt fit of the identifiable coordinates (the others held at nominal),
-   with the same program, weighted by the sensors' nominal noise; a run whose simulation fails
-   at the estimate, or that the joint fit does not explain while it explains another
-   (`_checks.failed_runs`), is left out and the fit repeated without it (same program: the
-   run's residuals are masked);
+4. the identifiability rule (`_elements.py`) on the bias-free Jacobian with the nuisance
+   columns profiled out (Schur complement, `_nuisance.py`): elements alone, groups, or not
+   identifiable;
+5. a Levenberg-Marquardt fit of the identifiable coordinates (the others held at nominal)
+   together with every nuisance parameter, with the same program, weighted by the sensors'
+   nominal noise; a run whose simulation fails at the estimate, or that the joint fit does
+   not explain while it explains another (`_checks.failed_runs`), is left out and the fit
+   repeated without it (same program: the run's residuals are masked);
 6. per-channel noise (`noise="per-channel"`, the default; `_robust.py`): the residual variance
    of every run and channel is estimated from the fit (degrees of freedom corrected), the rows
    reweighted by 1 / sqrt of it (floored at 1e-4 of the assumed variance) and the fit repeated
@@ -28,7 +33,8 @@ Steps (each documented where it is done):
    between channels; never below the Gauss-Newton standard errors with the estimated noise
    variance; `"gauss-newton"`: `bogie_jax.cost.covariance_from_jacobian`) and a verdict per
    coordinate by `judge` (`_verdict.py`), the decision z set by `false_alarm_rate` over the
-   judged coordinates (Bonferroni).
+   judged coordinates (Bonferroni); the judged block of the covariance of all fitted
+   coordinates (nuisance included), so the intervals carry the nuisance's uncertainty.
 
 Steps 3, 6 and 7 are numpy on the residuals and Jacobian the compiled program returns: nothing
 more is compiled.
@@ -49,11 +55,18 @@ from ..cost import (
     sandwich_covariance,
     score_series,
 )
-from ..params import BogieParams, ModelOptions, manchester_benchmark
+from ..params import BogieParams, ModelOptions, manchester_benchmark, resolve_parameter
 from ..simulation import SolveSettings
 from ._checks import RUN_MISFIT, check_inputs, failed_runs, tolerance_bands
-from ._elements import MAX_CORRELATION, RESOLUTION, check_candidates, classify_elements
+from ._elements import (
+    MAX_CORRELATION,
+    RESOLUTION,
+    check_candidates,
+    classify_elements,
+    nominal_values,
+)
 from ._host_fit import levenberg_marquardt
+from ._nuisance import DEFAULT_NUISANCE, NuisanceLayout, check_nuisance
 from ._result import FitSummary, MonitorResult, RunStatus
 from ._robust import RunChannels, channel_variances, channel_weights
 from ._verdict import check_false_alarm_rate, decision_z, judge
@@ -77,6 +90,8 @@ def monitor(
     noise: str = "per-channel",
     covariance: str = "sandwich",
     remove_bias: bool = True,
+    run_corrections: bool = True,
+    nuisance=DEFAULT_NUISANCE,
     bandwidth: float | None = None,
     resolution: float = RESOLUTION,
     max_correlation: float = MAX_CORRELATION,
@@ -114,6 +129,13 @@ def monitor(
       Gauss-Newton one with the `noise` mode's sigma^2.
     - `remove_bias`: eliminate a constant sensor bias per run and channel (default `True`;
       module docstring step 3). Costs one degree of freedom per run and channel.
+    - `run_corrections`: fit each run's position on its track record [m] and its speed
+      factor as nuisance parameters (default `True`; `_nuisance.py`): a track record placed
+      up to about 1 m wrong, or a speed a few % off, then neither biases the estimates nor
+      raises alarms; the fitted values are reported per run (`RunStatus`).
+    - `nuisance`: parameter names fitted with the candidates (log scale) but never judged,
+      reported in `fit.nuisance` (default `("contact.cone_slope",)`: worn wheels); `()` for
+      none.
     - `bandwidth`: the sandwich's Bartlett bandwidth in samples (>= 1), default `None`:
       Andrews' AR(1) plug-in rule (`bogie_jax.cost.hac_bandwidth`) on the prewhitened
       scores (`bogie_jax.cost.long_run_covariance`).
@@ -151,6 +173,7 @@ def monitor(
         )
     params = manchester_benchmark() if params is None else params
     names = check_candidates(params, candidates)
+    extra_names = check_nuisance(params, nuisance, names)
     bands = tolerance_bands(params, names, band)
     # throw=False: a failed solve gives infinite residuals for its run (left out, reported)
     # instead of an error that would stop every run of the vmapped program
@@ -160,24 +183,37 @@ def monitor(
         throw=False
     )
     objective = make_joint_objective(
-        measurements, params, tracks, names, options=options, settings=settings, weights=weights
-    ).forward_mode()
+        measurements, params, tracks, names + extra_names, options=options, settings=settings,
+        weights=weights,
+    ).forward_mode()  # fmt: skip
+    if run_corrections:
+        objective = objective.with_run_corrections()
     n_runs = len(measurements)
     active = np.ones(n_runs, dtype=bool)
     reasons = [""] * n_runs
     timings: dict[str, float] = {}
+    nuis = lambda: NuisanceLayout(
+        len(names), len(extra_names), n_runs, bool(run_corrections), active.copy()
+    )
 
     def with_active(obj):
-        return eqx.tree_at(lambda o: o.residual_model.active, obj, jnp.asarray(active))
+        if run_corrections:
+            where = lambda o: o.objective.residual_model.active
+        else:
+            where = lambda o: o.residual_model.active
+        return eqx.tree_at(where, obj, jnp.asarray(active))
 
-    def evaluate(theta):
-        r, jac = jax.block_until_ready(_JACOBIAN(objective, jnp.asarray(theta)))
+    def evaluate(x):
+        r, jac = jax.block_until_ready(_JACOBIAN(objective, jnp.asarray(x)))
         return np.asarray(r), np.asarray(jac)
 
     # 2. Fisher information at the nominal bogie (the first call compiles)
-    say(f"compiling the joint residual Jacobian ({n_runs} runs, {len(names)} candidates)")
+    say(
+        f"compiling the joint residual Jacobian ({n_runs} runs, {len(names)} candidates, "
+        f"{nuis().n_x - len(names)} nuisance parameters)"
+    )
     t0, c0 = time.perf_counter(), time.process_time()
-    r0, jac0 = evaluate(np.zeros(len(names)))
+    r0, jac0 = evaluate(np.zeros(nuis().n_x))
     timings["first_jacobian_s"] = time.perf_counter() - t0
     timings["first_jacobian_cpu_s"] = time.process_time() - c0
     slices = objective.residual_model.run_slices
@@ -190,7 +226,7 @@ def monitor(
     if not active.all():
         objective = with_active(objective)
         t0 = time.perf_counter()
-        r0, jac0 = evaluate(np.zeros(len(names)))
+        r0, jac0 = evaluate(np.zeros(nuis().n_x))
         timings["jacobian_s"] = time.perf_counter() - t0
     say("Fisher information: " + ", ".join(f"run {k} left out" for k in np.flatnonzero(~active)))
 
@@ -201,10 +237,10 @@ def monitor(
     project = layout().centre if remove_bias else (lambda x: x)
     n_bias = layout().n_bias if remove_bias else 0
 
-    # 4. identifiability
+    # 4. identifiability (the nuisance columns profiled out: `_nuisance.py`)
     z_rule = decision_z(false_alarm_rate, len(names))
     coords, statuses = classify_elements(
-        params, names, project(jac0), bands, band, z_rule,
+        params, names, nuis().profile(project(jac0)), bands, band, z_rule,
         resolution=resolution, max_correlation=max_correlation,
     )  # fmt: skip
     say(f"identifiable: {', '.join(c.name for c in coords) or 'none'}")
@@ -216,17 +252,26 @@ def monitor(
     rows = np.ones(mask.shape)  # row weights (step 6)
     last = {}  # the last evaluation, reused when a refit starts where the previous fit ended
 
-    def evaluate_phi(phi):
-        key = np.asarray(phi, dtype=float).tobytes()
+    def evaluate_phi(v):
+        """r and J in the fitted coordinates v = [phi, nuisance] (`_nuisance.py`)."""
+        key = np.asarray(v, dtype=float).tobytes()
         if last.get("key") != key:
-            r, jac = evaluate(a @ phi)
-            last.update(key=key, r=project(r), jac=project(jac @ a))
+            b = nuis().matrix(a)
+            x = b @ v
+            if not nuis().in_bounds(x):  # a rejected step
+                r = np.full(mask.shape, np.inf)
+                last.update(key=key, r=r, jac=np.zeros((r.size, b.shape[1])))
+            else:
+                r, jac = evaluate(x)
+                last.update(key=key, r=project(r), jac=project(jac @ b))
         return last["r"] * rows, last["jac"] * rows[:, None]
+
+    start = lambda: np.zeros(len(coords) + nuis().n_extra())
 
     t0 = time.perf_counter()
     fit, fits = None, []
     if coords:
-        fit = levenberg_marquardt(evaluate_phi, np.zeros(len(coords)), max_steps=max_steps)
+        fit = levenberg_marquardt(evaluate_phi, start(), max_steps=max_steps)
         fits.append(fit)
         while True:
             bad, why = failed_runs(fit.r, slices, active, n_obs_runs, run_misfit)
@@ -238,7 +283,7 @@ def monitor(
             objective = with_active(objective)
             last.clear()
             n_bias = layout().n_bias if remove_bias else 0
-            fit = levenberg_marquardt(evaluate_phi, np.zeros(len(coords)), max_steps=max_steps)
+            fit = levenberg_marquardt(evaluate_phi, start(), max_steps=max_steps)
             fits.append(fit)
 
     # 6. per-channel noise: reweight and refit from the estimate
@@ -247,7 +292,7 @@ def monitor(
     if coords and fit.status != "failed":
         s2_channels = channel_variances(fit.r, fit.jac, layout(), remove_bias=remove_bias)
         if noise == "per-channel":
-            dof = layout().n_present - n_bias - len(coords)
+            dof = layout().n_present - n_bias - fit.phi.size
             reference = float(fit.r @ fit.r) / dof if dof > 0 else 1.0
             for _ in range(REWEIGHTS):
                 new = channel_weights(s2_channels, reference=reference)
@@ -275,10 +320,19 @@ def monitor(
 
     # 7. covariance and verdicts
     used = layout()
-    verdicts, summary = _verdicts(
+    layout_x = nuis()
+    x_fit = layout_x.matrix(a) @ fit.phi if fit is not None else np.zeros(layout_x.n_x)
+    verdicts, summary, se_extra = _verdicts(
         coords, statuses, fit, fits, bands, used, n_bias, noise, covariance, bandwidth,
         false_alarm_rate, active, n_runs, s2_channels, remove_bias, reweights,
+        layout_x, x_fit, params, extra_names,
     )  # fmt: skip
+    offsets, factors = layout_x.offsets(x_fit), np.exp(layout_x.log_speed_factors(x_fit))
+    fitted = fit is not None and fit.status != "failed" and run_corrections
+    se_runs = np.full((2, n_runs), np.nan)
+    if fitted and se_extra.size:
+        n_act = int(active.sum())
+        se_runs[0, active], se_runs[1, active] = se_extra[-2 * n_act : -n_act], se_extra[-n_act:]
     runs = tuple(
         RunStatus(
             index=k,
@@ -290,6 +344,11 @@ def monitor(
             residual_rms=float(np.sqrt(np.mean((fit.r[slices[k]] / rows[slices[k]]) ** 2)))
             if fit is not None and active[k]
             else float("nan"),
+            position_offset=float(offsets[k]) if active[k] else float("nan"),
+            speed_factor=float(factors[k]) if active[k] else float("nan"),
+            position_offset_se=float(se_runs[0, k]),
+            speed_factor_se=float(se_runs[1, k]),
+            corrected=bool(fitted and active[k]),
         )
         for k, m in enumerate(measurements)
     )
@@ -305,8 +364,9 @@ def monitor(
 
 
 def _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, values):
-    """The covariance of the fitted coordinates (scaled to parameter values), the
-    Gauss-Newton one with `sigma2`, and the sandwich bandwidth (NaN for Gauss-Newton)."""
+    """The covariance of the fitted coordinates (scaled to parameter values, offsets [m] and
+    speed factors by `values`: dp/dv), the Gauss-Newton one with `sigma2`, and the sandwich
+    bandwidth (NaN for Gauss-Newton)."""
     gn = covariance_from_jacobian(fit.jac, sigma2=sigma2, scale=values)
     if kind == "gauss-newton":
         return gn, gn, float("nan")
@@ -323,24 +383,40 @@ def _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, values):
 
 def _verdicts(
     coords, statuses, fit, fits, bands, layout, n_bias, noise, kind, bandwidth, alpha, active,
-    n_runs, s2_channels, remove_bias, reweights,
+    n_runs, s2_channels, remove_bias, reweights, layout_x, x_fit, params, extra_names,
 ):  # fmt: skip
+    """Verdicts, the `FitSummary` and the standard errors of the fitted nuisance coordinates
+    (parameters' values, offsets [m], speed factors)."""
     used = f"{int(active.sum())} of {n_runs} runs"
+    se_extra = np.zeros(0)
     verdicts = []
     nan = float("nan")
     summary = FitSummary(
         names=(), status="no identifiable element", steps=0, evaluations=0, cost=nan,
         noise_variance=nan, sigma2=nan, rank=0, condition_number=nan, runs_used=int(active.sum()),
         noise=noise, covariance=kind, bias_removed=bool(remove_bias),
+        run_corrections=layout_x.corrections,
     )  # fmt: skip
     if coords:
-        m, n = layout.n_present, len(coords)
+        m, n = layout.n_present, fit.phi.size
         dof = m - n - n_bias
         s2 = 2 * fit.cost / dof if dof > 0 else float("nan")
         sigma2 = {"nominal": 1.0, "estimated": s2, "max": max(1.0, s2), "per-channel": s2}[noise]
-        values = np.array([c.nominal for c in coords]) * np.exp(fit.phi)
-        cov, gn, width = _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, values)
-        se, se_gn = np.asarray(cov.std_errors), np.asarray(gn.std_errors)
+        k = len(coords)
+        nominal_extra = nominal_values(params, extra_names)
+        values = np.array([c.nominal for c in coords]) * np.exp(fit.phi[:k])
+        extra_values = nominal_extra * np.exp(fit.phi[k : k + len(extra_names)])
+        scale = layout_x.scale(np.concatenate([values, extra_values]), x_fit)
+        cov, gn, width = _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, scale)
+        se_all, se_gn = np.asarray(cov.std_errors), np.asarray(gn.std_errors)
+        se, se_extra = se_all[:k], se_all[k:]
+        fitted_nuisance = {
+            name: {
+                "estimate": float(value), "std_error": float(err), "nominal": float(p0),
+                "unit": resolve_parameter(params, name).spec.unit,
+            }
+            for name, value, err, p0 in zip(extra_names, extra_values, se_extra, nominal_extra)
+        }  # fmt: skip
         z = decision_z(alpha, len(coords))
         for c, value, err, err_gn in zip(coords, values, se, se_gn):
             v = judge(c.name, value, err, c.band, z=z, identifiable=fit.status != "failed")
@@ -368,6 +444,7 @@ def _verdicts(
             condition_number=float(gn.condition_number), runs_used=int(active.sum()),
             costs=fit.costs, noise=noise, covariance=kind, bandwidth=width,
             bias_removed=bool(remove_bias), reweights=reweights, channel_noise=noise_levels,
+            run_corrections=layout_x.corrections, nuisance=fitted_nuisance,
         )  # fmt: skip
     z = decision_z(alpha, max(len(coords), 1))
     for s in statuses:
@@ -387,4 +464,4 @@ def _verdicts(
             "its group; held at its nominal value in the fit",
         )
         verdicts.append(v)
-    return tuple(verdicts), summary
+    return tuple(verdicts), summary, se_extra

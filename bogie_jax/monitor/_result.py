@@ -23,9 +23,14 @@ def _clean(x):
 
 @dataclasses.dataclass(frozen=True)
 class RunStatus:
-    """One measurement run: `index`, `speed` [m/s], `duration` [s], `track` (description),
-    `used` in the verdicts, `reason` when left out, `residual_rms` of its weighted residuals at
-    the estimate (about 1 when the model explains the run to the sensors' noise)."""
+    """One measurement run: `index`, `speed` [m/s] (as stated), `duration` [s], `track`
+    (description), `used` in the verdicts, `reason` when left out, `residual_rms` of its
+    weighted residuals at the estimate (about 1 when the model explains the run to the
+    sensors' noise); with `corrected` (`monitor`'s `run_corrections`): the fitted
+    `position_offset` [m] added to the run's start position on its track record (a record
+    whose irregularity at s is the true one at s + d gives -d) and `speed_factor` [-]
+    (true speed / stated speed), with their standard errors `position_offset_se` [m],
+    `speed_factor_se` [-] (NaN when not fitted; offset 0 and factor 1 when not corrected)."""
 
     index: int
     speed: float
@@ -34,6 +39,11 @@ class RunStatus:
     used: bool
     reason: str
     residual_rms: float
+    position_offset: float = 0.0
+    speed_factor: float = 1.0
+    position_offset_se: float = float("nan")
+    speed_factor_se: float = float("nan")
+    corrected: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,7 +58,9 @@ class FitSummary:
     `reweights` (refits with per-channel weights), `channel_noise`: per run (empty if left
     out), per channel, the residual standard deviation at the estimate as a multiple of the
     sensor's assumed `noise_std` (degrees of freedom corrected; 1: the assumed noise is
-    right)."""
+    right); `run_corrections`: whether each run's track position and speed were fitted (the
+    values are in `MonitorResult.runs`); `nuisance`: the parameters fitted but not judged,
+    `{name: {"estimate", "std_error", "nominal", "unit"}}`."""
 
     names: tuple[str, ...]
     status: str
@@ -67,6 +79,8 @@ class FitSummary:
     bias_removed: bool = False
     reweights: int = 0
     channel_noise: tuple[tuple[float, ...], ...] = ()
+    run_corrections: bool = False
+    nuisance: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,6 +132,18 @@ class MonitorResult:
             else:
                 est, ci = f"{v.estimate:12.5g}", f"[{v.ci95[0]:.5g}, {v.ci95[1]:.5g}]"
             rows.append(f"{v.name:28s} {v.verdict:17s} {est:>12s} {ci:>27s} {v.band.unit}")
+        for name, p in self.fit.nuisance.items():
+            rows.append(
+                f"fitted, not judged: {name} = {p['estimate']:.5g} +- {p['std_error']:.2g} "
+                f"{p['unit']} (nominal {p['nominal']:.5g})"
+            )
+        for r in self.runs:
+            if r.corrected:
+                rows.append(
+                    f"run {r.index}: track position offset {r.position_offset:+.3f} +- "
+                    f"{r.position_offset_se:.2g} m, speed x {r.speed_factor:.5f} +- "
+                    f"{r.speed_factor_se:.1e}"
+                )
         left = [r for r in self.runs if not r.used]
         if left:
             rows.append(
