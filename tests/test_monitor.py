@@ -36,6 +36,7 @@ from bogie_jax.monitor import (
     recorded_track,
     scenario_measurements,
     with_speed_error,
+    worn_wheels,
 )
 from bogie_jax.params import element_names, get_parameter, manchester_benchmark, parameter_specs
 from bogie_jax.simulation import SolveSettings
@@ -391,6 +392,22 @@ def test_monitor_fits_track_offset_and_speed_of_each_run(yaw_left_50, healthy, n
     result = monitor(data, tracks)
     print(result.table())
     _check_corrections(result, -0.2)
+    assert result.alarms == ()
+    _non_alarms_are_healthy(result)
+
+
+def test_monitor_fits_the_cone_slope_of_worn_wheels(nominal):
+    """Item 4f: a healthy bogie on worn wheels (cone slope 1.3 times nominal, `worn_wheels`),
+    noise-free runs of the module's shapes on exact tracks. The default nuisance parameter
+    `contact.cone_slope` is fitted (oracle: the known factor, to 1 %), never judged, and no
+    suspension element is called degraded."""
+    worn = worn_wheels(nominal, 1.3)
+    data = scenario_measurements("healthy", RUNS, params=worn)
+    result = monitor(data)
+    print(result.table())
+    slope = result.fit.nuisance["contact.cone_slope"]
+    assert slope["estimate"] == pytest.approx(1.3 * slope["nominal"], rel=1e-2), slope
+    assert all(v.name != "contact.cone_slope" for v in result.verdicts)
     assert result.alarms == ()
     _non_alarms_are_healthy(result)
 

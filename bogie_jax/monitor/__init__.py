@@ -39,6 +39,12 @@ from ._monitor import (
     SETTLED as SETTLED,
     monitor as monitor,
 )
+from ._nuisance import (
+    DEFAULT_NUISANCE as DEFAULT_NUISANCE,
+    MAX_OFFSET as MAX_OFFSET,
+    OFFSET_SCALE as OFFSET_SCALE,
+    SPEED_SCALE as SPEED_SCALE,
+)
 from ._result import (
     FitSummary as FitSummary,
     MonitorResult as MonitorResult,
