@@ -136,9 +136,28 @@ def test_layout_of_x_and_input_errors(corrected):
         corrected.residual_model.with_corrections(RunCorrections.zeros(1))
     with pytest.raises(TypeError, match="RunCorrections"):
         corrected.residual_model.with_corrections(np.zeros(2))
+    # monitor leaves runs out through `residual_model.active`: it reaches the wrapped model
+    off = eqx.tree_at(lambda o: o.residual_model.active, corrected, jnp.array([True, False]))
+    assert isinstance(off, CorrectedObjective)
+    np.testing.assert_array_equal(np.asarray(off.objective.residual_model.active), [True, False])
     single = corrected.residual_model.runs()[0]
     with pytest.raises(ValueError, match="holds 2 runs for a residual model of 1"):
         single.with_corrections(RunCorrections.zeros(2))
+
+
+def test_profiled_jacobian_is_the_schur_complement(corrected):
+    """Oracle: the theta block of (J^T J)^-1 (numpy) is the inverse of J_eff^T J_eff; a zero
+    correction column (an inactive run) drops out."""
+    rng = np.random.default_rng(0)
+    jac = rng.standard_normal((40, corrected.n_params))
+    jac[:, 2] = 0.0  # position_offset[1] of a run left out
+    eff = np.asarray(corrected.profile_jacobian(jac))
+    assert eff.shape == (40, 1)
+    keep = [0, 1, 3, 4]
+    expected = np.linalg.inv(np.linalg.inv(jac[:, keep].T @ jac[:, keep])[:1, :1])
+    np.testing.assert_allclose(eff.T @ eff, expected, rtol=1e-10)
+    with pytest.raises(ValueError, match=r"`jac` must have shape \(m, 5\)"):
+        corrected.profile_jacobian(jac[:, :4])
 
 
 # ------------------------------------------------------------------------------------------

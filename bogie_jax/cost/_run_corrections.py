@@ -182,6 +182,22 @@ class CorrectedObjective(eqx.Module):
         check_corrections(corrections, self.n_runs)
         return jnp.concatenate([theta, corrections.position_offset, corrections.log_speed_factor])
 
+    def profile_jacobian(self, jac) -> Float[Array, "m n"]:
+        """The theta columns of `jac` (m, n + 2R) with the corrections profiled out:
+        J_eff = (I - P_c) J_theta, P_c the orthogonal projector onto the correction columns
+        J_c (least squares; zero columns, e.g. of inactive runs, drop out). Then
+        J_eff^T J_eff = I_tt - I_tc I_cc^+ I_ct (the Schur complement of the Fisher information
+        J^T J), whose inverse is the theta block of (J^T J)^-1: the information on theta
+        with the corrections unknown, for identifiability checks on theta alone."""
+        jac = jnp.asarray(jac)
+        if jac.ndim != 2 or jac.shape[1] != self.n_params:
+            raise ValueError(
+                f"`jac` must have shape (m, {self.n_params}) (columns of x), got {jac.shape}"
+            )
+        j_theta, j_c = jac[:, self.theta_slice], jac[:, self.n_theta :]
+        coef = jnp.linalg.lstsq(j_c, j_theta)[0]
+        return j_theta - j_c @ coef
+
     # ---------------------------------------------------------------- evaluation
     def corrected(self, corrections: RunCorrections):
         """The `Objective` over theta with `corrections` applied to its runs."""
