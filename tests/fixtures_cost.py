@@ -2,11 +2,12 @@
 
 One short run (0.25 s at 200 Hz, 50 m/s, ERRI-low track) measured by four channels of the
 default layout, with creep saturation on (so the start at static equilibrium, where every
-creepage is zero, exercises the NaN-safe creep law). Tsit5 with a fixed step of 0.1 ms: every AD
+creepage is zero, exercises the NaN-safe creep law). Tsit5 with a fixed step of 0.25 ms: every AD
 method then differentiates the same discrete map (the scalar-product test is exact to rounding),
-and the gradient is within ~1e-9 of the tight adaptive reference. The track starts 5 m behind the
-trailing wheelset: a wheelset running onto the end of a sampled track sees a jump in the slope of
-the input, which would cut a fixed-step solver to first order. Every compiled function is
+and the gradient is within ~1e-8 of the tight adaptive reference (Tsit5's error ~ h^5: 4e-10
+measured at 0.1 ms). The track starts 5 m behind the trailing wheelset: a wheelset running onto
+the end of a sampled track sees a jump in the slope of the input, which would cut a fixed-step
+solver to first order. Every compiled function is
 compiled once per session: the objective's structure never changes between tests, only its array
 leaves (data, mask, weights, track, tolerances).
 """
@@ -27,7 +28,7 @@ SPEED, DURATION, RATE = 50.0, 0.25, 200.0  # [m/s], [s], [Hz]
 NAMES = ("primary.kz", "yaw_dampers.c", "primary.ky")  # primary.ky boxed, the others log scale
 CHANNELS = ("frame_1L_y", "frame_1L_z", "frame_yaw_rate", "axlebox_1L_y")
 OPTIONS = ModelOptions(creep_saturation=True)
-DT = 1e-4  # [s] fixed step
+DT = 2.5e-4  # [s] fixed step (h |lambda|max ~ 0.1: accuracy, not stability, sets it)
 
 
 @pytest.fixture(scope="session")
