@@ -360,8 +360,6 @@ def _check_corrections(result, offset):
         assert run.position_offset == pytest.approx(-offset, abs=1e-2), result.runs
         assert run.speed_factor == pytest.approx(factor, abs=1e-3), result.runs
         assert 0 < run.position_offset_se < 0.05 and 0 < run.speed_factor_se < 1e-2
-    slope = result.fit.nuisance["contact.cone_slope"]  # the true wheels are nominal
-    assert slope["estimate"] == pytest.approx(slope["nominal"], rel=2e-2), slope
 
 
 def test_monitor_fits_track_offset_and_speed_of_each_run(yaw_left_50, healthy, nominal):
@@ -371,8 +369,7 @@ def test_monitor_fits_track_offset_and_speed_of_each_run(yaw_left_50, healthy, n
     the corrections a 0.1 m offset alone gave 2 false alarms on the demo case (primary cz)
     and 0.5 m made every element `not identifiable` (measured 2026-11-23 with the demo). The
     default `run_corrections=True` recovers each run's offset (to 1 cm) and speed factor (to
-    1e-3), finds the damper, raises no other alarm, and none on the healthy bogie; the cone
-    slope (default nuisance) is fitted and stays at its true, nominal value."""
+    1e-3), finds the damper, raises no other alarm, and none on the healthy bogie."""
     data, tracks = _shifted_and_sped_up(yaw_left_50, nominal, 0.3)
     result = monitor(data, tracks)
     print(result.table())
@@ -382,10 +379,9 @@ def test_monitor_fits_track_offset_and_speed_of_each_run(yaw_left_50, healthy, n
     assert [v.name for v in result.alarms] == [left.name]
     if left.name == "yaw_dampers.left.c":
         assert left.estimate == pytest.approx(0.5 * 400e3, rel=1e-2)
-    assert all(v.name != "contact.cone_slope" for v in result.verdicts)  # never judged
     record = json.loads(json.dumps(result.to_dict()))
     assert record["runs"][1]["speed_factor"] == pytest.approx(1 / 1.01, abs=1e-3)
-    assert "contact.cone_slope" in record["fit"]["nuisance"]
+    assert record["runs"][0]["position_offset"] == pytest.approx(-0.3, abs=1e-2)
     assert "track position offset" in result.table()
 
     data, tracks = _shifted_and_sped_up(healthy, nominal, -0.2)
@@ -396,14 +392,16 @@ def test_monitor_fits_track_offset_and_speed_of_each_run(yaw_left_50, healthy, n
     _non_alarms_are_healthy(result)
 
 
+@pytest.mark.heavy
 def test_monitor_fits_the_cone_slope_of_worn_wheels(nominal):
     """Item 4f: a healthy bogie on worn wheels (cone slope 1.3 times nominal, `worn_wheels`),
-    noise-free runs of the module's shapes on exact tracks. The default nuisance parameter
+    noise-free runs of the module's shapes on exact tracks. The nuisance parameter
     `contact.cone_slope` is fitted (oracle: the known factor, to 1 %), never judged, and no
-    suspension element is called degraded."""
+    suspension element is called degraded. Heavy: one more column compiles a second
+    residual-Jacobian program (about 2.5 min on the shared 2 cores; passed 2026-11-23)."""
     worn = worn_wheels(nominal, 1.3)
     data = scenario_measurements("healthy", RUNS, params=worn)
-    result = monitor(data)
+    result = monitor(data, nuisance=("contact.cone_slope",))
     print(result.table())
     slope = result.fit.nuisance["contact.cone_slope"]
     assert slope["estimate"] == pytest.approx(1.3 * slope["nominal"], rel=1e-2), slope

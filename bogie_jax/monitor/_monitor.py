@@ -5,12 +5,12 @@ Steps (each documented where it is done):
 1. input checks, before anything is compiled: at least one measurement, one sensor layout
    (and channel list) for all of them, one track per measurement, valid bands and names;
 2. the joint objective of all runs (`bogie_jax.cost.make_joint_objective`, shared suspension
-   parameters, ln p of every candidate and of the `nuisance` parameters, default the wheels'
-   cone slope; with `run_corrections`, default on, each run's track-position offset and log
-   speed factor: `bogie_jax.cost.CorrectedObjective`, `_nuisance.py`) and its residual
-   Jacobian at the nominal bogie: one compiled program (`_host_fit.py`), whose first
-   evaluation gives the Fisher information; a run whose simulation fails there is left out
-   (and reported);
+   parameters, ln p of every candidate and of the `nuisance` parameters, e.g. the wheels'
+   cone slope (default none); with `run_corrections`, default on, each run's track-position
+   offset and log speed factor: `bogie_jax.cost.CorrectedObjective`, `_nuisance.py`) and its
+   residual Jacobian at the nominal bogie: one compiled program (`_host_fit.py`), whose
+   first evaluation gives the Fisher information; a run whose simulation fails there is left
+   out (and reported);
 3. sensor bias (`remove_bias`, default on; `_robust.py`): a constant per run and channel,
    eliminated by variable projection: r and every column of J are centred over time per run
    and channel (present samples only) after every evaluation, on the host;
@@ -134,8 +134,8 @@ def monitor(
       up to about 1 m wrong, or a speed a few % off, then neither biases the estimates nor
       raises alarms; the fitted values are reported per run (`RunStatus`).
     - `nuisance`: parameter names fitted with the candidates (log scale) but never judged,
-      reported in `fit.nuisance` (default `("contact.cone_slope",)`: worn wheels); `()` for
-      none.
+      reported in `fit.nuisance` (default `()`; `("contact.cone_slope",)` for worn wheels:
+      on a noisy track record it costs detection power, see `_nuisance.py`).
     - `bandwidth`: the sandwich's Bartlett bandwidth in samples (>= 1), default `None`:
       Andrews' AR(1) plug-in rule (`bogie_jax.cost.hac_bandwidth`) on the prewhitened
       scores (`bogie_jax.cost.long_run_covariance`).
