@@ -363,20 +363,21 @@ def monitor(
     )
 
 
-def _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, values):
-    """The covariance of the fitted coordinates (scaled to parameter values, offsets [m] and
-    speed factors by `values`: dp/dv), the Gauss-Newton one with `sigma2`, and the sandwich
-    bandwidth (NaN for Gauss-Newton)."""
-    gn = covariance_from_jacobian(fit.jac, sigma2=sigma2, scale=values)
+def _covariance(jac, r, layout, n_nuisance, sigma2, kind, bandwidth, values):
+    """The covariance of the coordinates of `jac`'s columns (scaled to parameter values,
+    offsets [m] and speed factors by `values`: dp/dv), the Gauss-Newton one with `sigma2`,
+    and the sandwich bandwidth (NaN for Gauss-Newton); `n_nuisance`: further parameters
+    (bias, profiled nuisance) in the degrees of freedom."""
+    gn = covariance_from_jacobian(jac, sigma2=sigma2, scale=values)
     if kind == "gauss-newton":
         return gn, gn, float("nan")
     runs = [sl for k, sl in enumerate(layout.slices) if layout.active[k]]
     if bandwidth is None:
-        scores = score_series(fit.jac, fit.r, runs, layout.n_channels)
+        scores = score_series(jac, r, runs, layout.n_channels)
         bandwidth = long_run_covariance(scores)[1]
     cov = sandwich_covariance(
-        fit.jac, fit.r, runs=runs, n_channels=layout.n_channels, bandwidth=bandwidth,
-        n_nuisance=n_bias, floor_sigma2=sigma2, scale=values,
+        jac, r, runs=runs, n_channels=layout.n_channels, bandwidth=bandwidth,
+        n_nuisance=n_nuisance, floor_sigma2=sigma2, scale=values,
     )  # fmt: skip
     return cov, gn, float(bandwidth)
 
@@ -407,7 +408,7 @@ def _verdicts(
         values = np.array([c.nominal for c in coords]) * np.exp(fit.phi[:k])
         extra_values = nominal_extra * np.exp(fit.phi[k : k + len(extra_names)])
         scale = layout_x.scale(np.concatenate([values, extra_values]), x_fit)
-        cov, gn, width = _covariance(fit, layout, n_bias, sigma2, kind, bandwidth, scale)
+        cov, gn, width = _covariance(fit.jac, fit.r, layout, n_bias, sigma2, kind, bandwidth, scale)
         se_all, se_gn = np.asarray(cov.std_errors), np.asarray(gn.std_errors)
         se, se_extra = se_all[:k], se_all[k:]
         fitted_nuisance = {

@@ -29,7 +29,14 @@ projected orthogonally to every nuisance column, J_eff = (I - P_N) J_c, P_N = J_
 (J_eff^T J_eff)^+ is the candidates' block of (J^T J)^+, the information on them with the
 nuisance unknown (`bogie_jax.cost.CorrectedObjective.profile_jacobian` does the same for the
 run corrections alone). The covariance of the estimates is the judged block of the full
-covariance of v: the same matrix.
+covariance of v (Gauss-Newton: the same matrix; the sandwich of the profiled Jacobian differs
+through its per-component prewhitening: tried on the data of
+tests/test_monitor_robust.py's end-to-end case it gave a 15 % larger damper standard error, so
+the full one is used).
+
+Cost (measured 2026-11-23 on the shared 2-core machine, demo case, cold): the compile and
+first evaluation of the residual-Jacobian program took 55.6-58.6 s CPU with the 16 candidates
+alone and 58.8-59.9 s CPU with the 4 run corrections (67-70 s with the cone slope too).
 """
 
 import dataclasses
