@@ -48,7 +48,11 @@ def reference(objective, theta0):
     return np.asarray(reference_gradient(objective, theta0, rtol=1e-10, atol=1e-12))
 
 
-@pytest.mark.parametrize("method", ["reverse", "forward", "backsolve", "direct"])
+# backsolve and direct are heavy (README, "Tests"): two more compiled adjoints, 3 min of CPU
+HEAVY_ADJOINTS = [pytest.param(m, marks=pytest.mark.heavy) for m in ("backsolve", "direct")]
+
+
+@pytest.mark.parametrize("method", ["reverse", "forward", *HEAVY_ADJOINTS])
 def test_ad_methods_match_the_tight_reference(objective, theta0, reference, method):
     # The fixed 0.25 ms step puts the gradient of the discrete solution within ~1e-8 of the
     # exact one (4e-10 measured at 0.1 ms, Tsit5's error ~ h^5); backsolve integrates the
@@ -255,6 +259,7 @@ def test_gradcheck_cli_rejects_bad_input(argv, message, capsys, tmp_path, monkey
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.heavy  # the command end to end compiles four programs (2 min); README, "Tests"
 def test_gradcheck_cli_writes_records(tmp_path, capsys):
     out = tmp_path / "g.json"
     argv = [

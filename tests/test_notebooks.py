@@ -11,11 +11,18 @@ from nbclient import NotebookClient
 
 NOTEBOOKS = sorted((Path(__file__).parents[1] / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT = 900  # [s] one cell; a whole notebook should take under 3 minutes (README)
-# Over their 3-minute budget today (4-5 min of CPU each on 2 cores, compile-bound): run with
-# `pytest -m heavy` so that the default suite stays under 20 minutes (README, "Tests").
-OVER_BUDGET = {"03_gradients.ipynb", "04_global_vs_local.ipynb"}
+# Run with `pytest -m heavy` (README, "Tests"): 03 and 04 are over their 3-minute budget today
+# (4-5 min of CPU each on 2 cores, compile-bound); 01 and 05 are within it (147 s and 142 s
+# measured 2026-11-23) but left out of the default suite to keep it under 20 minutes; 02 (79 s)
+# is the default suite's kernel run.
+HEAVY = {
+    "01_forward_model_and_hunting.ipynb",
+    "03_gradients.ipynb",
+    "04_global_vs_local.ipynb",
+    "05_condition_monitoring.ipynb",
+}
 KERNEL_RUNS = [
-    pytest.param(p, marks=pytest.mark.heavy) if p.name in OVER_BUDGET else p for p in NOTEBOOKS
+    pytest.param(p, marks=pytest.mark.heavy) if p.name in HEAVY else p for p in NOTEBOOKS
 ]
 
 
