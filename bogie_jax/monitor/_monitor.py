@@ -228,7 +228,8 @@ def monitor(
         t0 = time.perf_counter()
         r0, jac0 = evaluate(np.zeros(nuis().n_x))
         timings["jacobian_s"] = time.perf_counter() - t0
-    say("Fisher information: " + ", ".join(f"run {k} left out" for k in np.flatnonzero(~active)))
+    left_out = ", ".join(f"run {k} left out" for k in np.flatnonzero(~active))
+    say(f"Fisher information: {left_out or f'all {n_runs} runs used'}")
 
     # 3. the bias projection (and, step 6, the channel weights) on the host
     n_channels = len(measurements[0].channels)
