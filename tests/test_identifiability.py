@@ -183,7 +183,7 @@ def real_objective():
     return objective
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # 1.5 min of compile for a smoke check; README, "Tests"
 def test_real_objective_fim_is_finite(real_objective):
     fim = fisher_information(real_objective)
     assert fim.names == ("primary.kz", "primary.ky", "yaw_dampers.c")
