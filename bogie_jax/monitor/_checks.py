@@ -38,7 +38,9 @@ def failed_runs(r, slices, active, n_obs, run_misfit):
     return [], {}
 
 
-def check_inputs(measurements, tracks):
+def as_measurements(measurements) -> tuple[Measurement, ...]:
+    """One `Measurement` or a sequence of them as a non-empty tuple (`ValueError` if empty,
+    `TypeError` naming the first entry that is not a `Measurement`)."""
     if isinstance(measurements, Measurement):
         measurements = (measurements,)
     measurements = tuple(measurements)
@@ -47,6 +49,11 @@ def check_inputs(measurements, tracks):
     for k, m in enumerate(measurements):
         if not isinstance(m, Measurement):
             raise TypeError(f"`measurements[{k}]` must be a Measurement, got {type(m).__name__}")
+    return measurements
+
+
+def check_inputs(measurements, tracks):
+    measurements = as_measurements(measurements)
     first = measurements[0]
     for k, m in enumerate(measurements[1:], start=1):
         if m.layout != first.layout or m.channels != first.channels:

@@ -29,6 +29,7 @@ from jaxtyping import ArrayLike
 from ..measure import Measurement, layout_description
 from ..params import BogieParams, ModelOptions, get_parameter, set_parameters
 from ..track import TrackIrregularity, TrackReference
+from ._checks import as_measurements
 
 
 ERROR_SEED_OFFSET = 1000
@@ -203,14 +204,8 @@ def nonlinear_options(
 
 
 def _runs(measurements) -> tuple[Measurement, ...]:
-    if isinstance(measurements, Measurement):
-        measurements = (measurements,)
-    measurements = tuple(measurements)
-    if not measurements:
-        raise ValueError("`measurements` is empty: give at least one measurement run")
+    measurements = as_measurements(measurements)
     for k, m in enumerate(measurements):
-        if not isinstance(m, Measurement):
-            raise TypeError(f"`measurements[{k}]` must be a Measurement, got {type(m).__name__}")
         if m.channels != measurements[0].channels:
             raise ValueError(
                 f"`measurements[{k}]` has channels {', '.join(m.channels)}, run 0 has "
