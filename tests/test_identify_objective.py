@@ -24,7 +24,9 @@ import pytest
 
 import bogie_jax.cli.identify as identify_command
 from bogie_jax.cli import Parser, Progress, UsageError
+from bogie_jax.cost import make_objective
 from bogie_jax.identify import (
+    SCENARIOS,
     as_problem,
     batched_fits,
     fit,
@@ -34,7 +36,11 @@ from bogie_jax.identify import (
     scenario_problem,
     stack_objectives,
     statistics,
+    tolerance_bounds,
 )
+from bogie_jax.measure import Measurement, default_sensor_layout
+from bogie_jax.params import manchester_benchmark
+from bogie_jax.track import perfect_track
 
 
 DURATION, RATE, MAX_STEPS, N_STARTS = 0.25, 100.0, 100, 4
@@ -115,18 +121,42 @@ def test_noisy_truth_inside_intervals(clean):
     assert sum(covered) >= len(NOISE_SEEDS) - 1, covered
 
 
-def test_errors_through_entry_points(clean):
+@pytest.fixture(scope="module")
+def unsimulated():
+    """The objective of `clean` (the primary3 selection in its tolerance band) on zero data and
+    a perfect track: built without a simulation (nothing compiled), which is all the checks of
+    `fit` and `fit_multistart` on their starting points read."""
+    scenario = SCENARIOS["primary3"]
+    nominal = manchester_benchmark()
+    names = tuple(scenario.offsets)
+    sensors = default_sensor_layout(nominal)
+    n = round(DURATION * RATE) + 1
+    zero = Measurement(
+        times=np.arange(n) / RATE,
+        data=np.zeros((n, len(sensors))),
+        channels=[s.name for s in sensors],
+        units=[s.unit for s in sensors],
+        speed=scenario.speed,
+    )
+    bounds = tolerance_bounds(nominal, names, scenario.band)
+    return make_objective(zero, nominal, perfect_track(), names, sensors=sensors, bounds=bounds)
+
+
+def test_errors_through_entry_points(unsimulated):
+    objective = unsimulated
+    assert objective.selection.names == ("primary.kz", "primary.cz", "yaw_dampers.c")
     with pytest.raises(ValueError, match="unknown parameter 'primary.kzz'"):
         scenario_problem("primary3", ["primary.kzz"], duration=DURATION, sample_rate=RATE)
     with pytest.raises(ValueError, match="empty"):
         scenario_problem("primary3", [], duration=DURATION, sample_rate=RATE)
     with pytest.raises(ValueError, match="unknown scenario"):
         scenario_problem("nope")
-    outside = clean.truth * np.array([3.0, 1.0, 1.0])
+    # primary.kz at 3x nominal: outside its +-50 % band, the others at nominal (inside)
+    outside = np.asarray(objective.selection.nominal) * np.array([3.0, 1.0, 1.0])
     with pytest.raises(ValueError, match="strictly inside the bounds: primary.kz"):
-        fit(clean.objective, start=outside)
+        fit(objective, start=outside)
     with pytest.raises(ValueError, match="strictly inside the bounds"):
-        fit_multistart(clean.objective, key=jr.PRNGKey(0), starts=outside[None])
+        fit_multistart(objective, key=jr.PRNGKey(0), starts=outside[None])
 
 
 def _parse(argv):
