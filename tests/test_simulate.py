@@ -1,6 +1,8 @@
 """simulate(): input checks, vmap over speeds / parameters / tracks, the batch runner, no
 retracing for new parameter values."""
 
+import types
+
 import diffrax as dfx
 import equinox as eqx
 import jax
@@ -41,7 +43,16 @@ def _run(params, track, speed):
 
 @pytest.fixture(scope="module")
 def single():
-    return jax.jit(_run)
+    """`_run` jitted once for the module (`run`), and its traces (`traces`): every test calls it
+    with the same argument types (float64 arrays, never weak-typed Python floats), so every
+    call after the first must reuse its program."""
+    traces = []
+
+    def counted(params, track, speed):
+        traces.append(1)
+        return _run(params, track, speed)
+
+    return types.SimpleNamespace(run=jax.jit(counted), traces=traces)
 
 
 def _with_ky(params, ky):
@@ -73,14 +84,14 @@ def test_vmap_over_speeds_parameters_and_tracks_equals_loop(single, tracks):
         kys, stacked_tracks, speeds
     )
     for i in range(2):
-        one = single(_with_ky(params, kys[i]), tracks[i], speeds[i])
+        one = single.run(_with_ky(params, kys[i]), tracks[i], speeds[i])
         # A batched adaptive solve takes its own step sequence: agreement to the solver
         # tolerance (rtol 1e-8, accumulated over the run), not bit for bit.
         np.testing.assert_allclose(batched[i], one, rtol=0, atol=1e-5 * np.max(np.abs(one)))
     assert np.max(np.abs(np.asarray(batched))) > 1e-5  # the tracks really excite the bogie
 
 
-def test_batch_runner_sharded_equals_single_device_and_reports_failures(tracks):
+def test_batch_runner_sharded_equals_single_device_and_reports_failures(single, tracks):
     assert jax.device_count() >= 4, "tests/conftest.py exposes 4 host devices"
     params = bj.manchester_benchmark()
 
@@ -106,23 +117,19 @@ def test_batch_runner_sharded_equals_single_device_and_reports_failures(tracks):
         rtol=0,
         atol=1e-5 * scale,
     )
-    np.testing.assert_allclose(
-        np.asarray(sharded.outputs)[0], member(kys[0]), rtol=0, atol=1e-5 * scale
-    )
+    # member 0 run alone: `member(kys[0])` through the module's compiled `_run` (same run)
+    alone = single.run(_with_ky(params, kys[0]), tracks[0], jnp.asarray(50.0, dtype=float))
+    np.testing.assert_allclose(np.asarray(sharded.outputs)[0], alone, rtol=0, atol=1e-5 * scale)
 
 
-def test_new_parameter_values_do_not_retrace(tracks):
-    traces = []
-
-    @jax.jit
-    def run(params):
-        traces.append(1)
-        return _run(params, tracks[0], 50.0)
-
+def test_new_parameter_values_do_not_retrace(single, tracks):
+    """New parameter values (and, when the tests above ran first, other tracks and speeds of
+    the same shapes) reuse the one program: `_run` was traced once in this module."""
     params = bj.manchester_benchmark()
+    speed = jnp.asarray(50.0, dtype=float)
     for ky in (3e6, 4e6, 5e6):
-        run(_with_ky(params, jnp.asarray(ky)))
-    assert len(traces) == 1
+        single.run(_with_ky(params, jnp.asarray(ky, dtype=float)), tracks[0], speed)
+    assert len(single.traces) == 1
 
 
 def test_float32_is_explained():
