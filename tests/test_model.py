@@ -23,21 +23,38 @@ from bogie_jax.track import perfect_track
 
 
 def _set(params, **values):
-    """Return params with dotted-path fields replaced, e.g. _set(p, **{"primary.ky": 0.0})."""
+    """Return params with dotted-path fields replaced, e.g. _set(p, **{"primary.ky": 0.0}).
+
+    A per-element field (e.g. `primary.ky`, one value per spring) gets `value` in every element:
+    the shapes stay those of the named set, so the compiled programs below are shared."""
     for path, value in values.items():
         getter = lambda p, path=path: eval("p." + path)  # noqa: E731 (test helper)
-        params = eqx.tree_at(getter, params, jnp.asarray(value, dtype=float))
+        old = getter(params)
+        params = eqx.tree_at(getter, params, jnp.full(jnp.shape(old), value, dtype=float))
     return params
 
 
 @pytest.fixture(scope="module")
-def eig_fn():
-    return eqx.filter_jit(eigenvalues)
+def linear_fn():
+    """(system_matrix, eigenvalues) in one program; the speed is traced (one compilation)."""
+    return eqx.filter_jit(
+        lambda params, speed: (system_matrix(params, speed), eigenvalues(params, speed))
+    )
+
+
+@pytest.fixture(scope="module")
+def eig_fn(linear_fn):
+    return lambda params, speed: linear_fn(params, jnp.asarray(speed, dtype=float))[1]
+
+
+@pytest.fixture(scope="module")
+def mass_fn():
+    return jax.jit(mass_matrix)
 
 
 @pytest.fixture(scope="module")
 def simulate_fn():
-    def run(params, speed, y0, duration):
+    def run(params, speed, y0, duration):  # speed traced: one compilation per duration
         return simulate(
             params,
             perfect_track(),
@@ -48,7 +65,13 @@ def simulate_fn():
             stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-11),
         )
 
-    return eqx.filter_jit(run, donate="none")
+    jitted = eqx.filter_jit(run, donate="none")
+    return lambda params, speed, y0, duration: jitted(
+        params, jnp.asarray(speed, dtype=float), y0, duration
+    )
+
+
+HUNT_DURATION = 6.0  # [s]: the hunting runs; the rest run has the same length (one program)
 
 
 def _free_wheelsets(params):
@@ -65,21 +88,22 @@ def _lowest_oscillation_hz(eig):
 
 
 def test_static_equilibrium_is_kept(simulate_fn):
-    """Started at q = 0 on a perfect track, the bogie stays there (preloads balance gravity)."""
-    traj = simulate_fn(bj.manchester_benchmark(), 50.0, jnp.zeros(20), 1.0)
+    """Started at q = 0 on a perfect track, the bogie stays there (preloads balance gravity)
+    for 6 s (the hunting runs' length: the same compiled program)."""
+    traj = simulate_fn(bj.manchester_benchmark(), 50.0, jnp.zeros(20), HUNT_DURATION)
     assert bool(traj.successful)
     assert np.max(np.abs(traj.q)) < 1e-12  # metres / radians: rounding only
 
 
-def test_mass_matrix_symmetric_positive_definite():
+def test_mass_matrix_symmetric_positive_definite(mass_fn):
     model = build_model(bj.manchester_benchmark(), speed=50.0, track=perfect_track())
     q = jnp.array([1e-3, -2e-3, 1e-3, 2e-3, -1e-3, 3e-3, 4e-3, -3e-3, 2e-3, -1e-3])
-    m = np.asarray(jax.jit(mass_matrix)(model, q))
+    m = np.asarray(mass_fn(model, q))
     assert np.allclose(m, m.T, rtol=1e-12, atol=0)  # algebraic identity
     assert np.all(np.linalg.eigvalsh(m) > 0)
 
 
-def test_gravitational_stiffness_matches_energy_method():
+def test_gravitational_stiffness_matches_energy_method(linear_fn, mass_fn):
     """With creep and primary springs removed, the wheelset's lateral and yaw stiffness from the
     constraint (paper eq. 2) is K_y = W zeta and K_yaw = -W xi (reference doc 1.4, [D check])."""
     p = _set(
@@ -88,8 +112,8 @@ def test_gravitational_stiffness_matches_energy_method():
         **{"contact.creep_factor": 0.0},
     )
     model = build_model(p, speed=50.0, track=perfect_track())
-    a = np.asarray(jax.jit(system_matrix)(p, 50.0))
-    m = np.asarray(mass_matrix(model, jnp.zeros(10)))
+    a = np.asarray(linear_fn(p, jnp.asarray(50.0, dtype=float))[0])
+    m = np.asarray(mass_fn(model, jnp.zeros(10)))
     stiffness = -(m @ a[10:, :10])  # dQ/dq = M d(q_ddot)/dq at rest
     c = p.contact
     geo = cone_geometry(c.wheel_radius, c.contact_semi_distance, c.cone_slope, c.rail_head_radius)
@@ -162,7 +186,7 @@ def test_hunting_onset_at_critical_speed(simulate_fn):
     y0 = jnp.zeros(20).at[6].set(2e-3).at[7].set(2e-3)
     envelopes = {}
     for factor in (0.9, 1.1):
-        traj = simulate_fn(p, factor * v_crit, y0, 6.0)
+        traj = simulate_fn(p, factor * v_crit, y0, HUNT_DURATION)
         assert bool(traj.successful)
         y = np.abs(np.asarray(traj.q[:, 6]))
         envelopes[factor] = (y[100:200].max(), y[-100:].max())  # second 1 s vs last 1 s
