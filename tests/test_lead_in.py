@@ -135,13 +135,16 @@ def test_fit_without_lead_in_is_biased(fits):
     assert float(result.cost) > 1e3 * max(float(fits["fit"].cost), 1e-12)
 
 
+# one compiled program for every finite-difference matrix (the model is a traced argument)
+_batched_vector_field = jax.jit(jax.vmap(lambda y, model: vector_field(0.0, y, model), (0, None)))
+
+
 def _fd_system_matrix(params, speed, q0, h=1e-7):
     """Central differences of the vector field at (q0, 0) on a perfect track (20, 20)."""
     model = build_model(params, speed=speed, track=perfect_track())
-    f = jax.jit(jax.vmap(lambda y: vector_field(0.0, y, model)))
     y0 = np.concatenate([np.asarray(q0), np.zeros(10)])
     steps = h * np.eye(20)
-    plus, minus = np.asarray(f(y0 + steps)), np.asarray(f(y0 - steps))
+    plus, minus = (np.asarray(_batched_vector_field(y, model)) for y in (y0 + steps, y0 - steps))
     return ((plus - minus) / (2 * h)).T
 
 
