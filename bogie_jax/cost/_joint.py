@@ -177,6 +177,13 @@ def _pad_track(model: ResidualModel, n: int) -> ResidualModel:
     return eqx.tree_at(lambda m: m.track, model, track)
 
 
+# Fields of a run whose array leaves are always stacked, even where the runs happen to agree
+# (two runs from the start of the track, no missing sample in either): the split into stacked
+# and shared leaves is the program's structure, so it must not depend on these values (windows
+# at other start positions, a run with missing samples would otherwise compile another program).
+RUN_FIELDS = ("track", "speed", "data", "mask", "sqrt_weights", "start_position", "lead_in")
+
+
 def _stack_runs(models):
     """`(batched, shared)` trees if the runs can share one vmapped program, else `None`."""
     n_track = max(m.track.num_samples for m in models)
@@ -185,9 +192,12 @@ def _stack_runs(models):
     treedef = flat[0][1]
     if any(t != treedef for _, t in flat):
         return None
+    paths = [path for path, _ in jax.tree_util.tree_flatten_with_path(models[0])[0]]
+    per_run = [getattr(path[0], "name", None) in RUN_FIELDS for path in paths]
     batched, shared = [], []
-    for values in zip(*(leaves for leaves, _ in flat)):
-        if all(_same(values[0], v) for v in values[1:]):
+    for run_leaf, values in zip(per_run, zip(*(leaves for leaves, _ in flat))):
+        stack = run_leaf and all(isinstance(v, (np.ndarray, jax.Array)) for v in values)
+        if not stack and all(_same(values[0], v) for v in values[1:]):
             batched.append(None)
             shared.append(values[0])
             continue

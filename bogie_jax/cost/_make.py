@@ -112,9 +112,14 @@ def _matching_sensors(measurement, sensors) -> tuple:
 
 def _check_sampling(measurement) -> tuple[float, float]:
     """(duration, rate): the model samples at k / f_s after the first sample, k = 0..n-1; the
-    measurement's times relative to their first must be those (uniform spacing)."""
+    measurement's times relative to their first must be those (uniform spacing). Both are
+    static fields of the residual model, so they are canonical: the rate to 12 significant
+    digits and the duration (n - 1) / rate. The times of a window that starts at
+    start_position / speed carry a few ulps of rounding (0.49999999999999994 s and
+    100.00000000000001 Hz for 0.5 s at 100 Hz from 10 m at 30 m/s), which would otherwise
+    compile another program for every such window."""
     times = np.asarray(measurement.times, dtype=float)
-    rate = measurement.sample_rate
+    rate = float(f"{measurement.sample_rate:.12g}")
     relative = times - times[0]
     expected = np.asarray(sample_times(float(relative[-1]), rate))
     if expected.shape != times.shape or not np.allclose(
@@ -125,7 +130,7 @@ def _check_sampling(measurement) -> tuple[float, float]:
             f"{times.size} samples from t = {times[0]:g} s to {times[-1]:g} s that are not "
             f"uniformly spaced at {rate:g} Hz"
         )
-    return float(relative[-1]), float(rate)
+    return (times.size - 1) / rate, rate
 
 
 def _weights(weights, sensors, channels) -> np.ndarray:
