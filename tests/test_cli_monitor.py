@@ -1,9 +1,10 @@
-"""`bogie-jax demo` and `bogie-jax monitor` (issue 19 items 5 and 7 at the command line): the
-demo end to end on short runs, the `verdicts.json` schema and the report, `--history` trends of
-synthetic results, and bad input (one-line errors, exit code 2, before anything is compiled).
+"""`bogie-jax demo` and `bogie-jax monitor` (issue 19 items 5 and 7 at the command line):
+`--history` trends of synthetic results, and bad input (one-line errors, exit code 2, before
+anything is compiled). Everything here reads and writes small files and compiles nothing.
 
-The demo runs once (0.5 s per run at 100 Hz, 30 and 50 m/s: the run shapes of
-tests/test_monitor.py); everything else reads and writes small files and compiles nothing.
+The demo end to end, its `verdicts.json` schema, its report and `monitor --data` replaying it
+are in tests/test_monitor.py: its runs have that module's run shapes, so in one process the
+demo reuses the simulation and residual-Jacobian programs the module's `monitor` tests compile.
 """
 
 import json
@@ -13,9 +14,9 @@ import numpy as np
 import pytest
 
 from bogie_jax.cli import main
-from bogie_jax.io import VERDICTS_FORMAT, read_verdicts, write_verdicts
-from bogie_jax.monitor import DEFECT_SCENARIOS, VERDICTS, ToleranceBand, decision_z, judge
-from bogie_jax.params import get_parameter, manchester_benchmark
+from bogie_jax.io import read_verdicts, write_verdicts
+from bogie_jax.monitor import ToleranceBand, decision_z, judge
+from bogie_jax.params import manchester_benchmark
 
 
 ALARMS = ("degraded", "failed")
@@ -26,112 +27,6 @@ def _exit_code(argv):
         return main(argv)
     except SystemExit as e:  # argparse's own errors
         return e.code
-
-
-@pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo")
-    import contextlib
-    import io
-
-    text = io.StringIO()
-    with contextlib.redirect_stdout(text):
-        code = main(["demo", "--out", str(out), "--duration", "0.5", "--date", "2026-03-04"])
-    return code, out, text.getvalue()
-
-
-@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
-def test_demo_runs_end_to_end_and_prints_progress_and_verdicts(demo):
-    code, out, text = demo
-    assert code == 0
-    assert "compiling the simulation" in text and "compiling the joint residual Jacobian" in text
-    assert "simulated runs 2/2 done" in text
-    assert "element" in text and "verdict" in text and "healthy band" in text
-    assert "process CPU" in text
-    for name in ("verdicts.json", "verdicts.png", "signals.png", "report.md"):
-        assert (out / name).stat().st_size > 500, name
-
-
-@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
-def test_demo_verdicts_json_schema(demo):
-    _, out, _ = demo
-    record = json.loads((out / "verdicts.json").read_text())
-    assert record["format"] == VERDICTS_FORMAT and record["date"] == "2026-03-04"
-    rows = record["verdicts"]
-    assert rows
-    nominal = manchester_benchmark()
-    for row in rows:
-        assert {"name", "verdict", "estimate", "ci95", "tolerance_band", "unit"} <= set(row)
-        assert row["verdict"] in VERDICTS
-        band = row["tolerance_band"]
-        lo, hi = band["healthy"]
-        assert lo < hi and band["unit"] == row["unit"]
-        if row["estimate"] is None:
-            assert row["verdict"] == "not identifiable" and row["ci95"] is None
-        else:
-            a, b = row["ci95"]
-            assert a < row["estimate"] < b
-            # the 95 % interval is estimate +- 1.96 standard errors
-            assert b - a == pytest.approx(2 * 1.959964 * row["std_error"], rel=1e-5)
-    # the default bands: nominal +- 20 % of the hand-read nominal value (units from the specs)
-    left = next(r for r in rows if r["name"] in ("yaw_dampers.left.c", "yaw_dampers.c"))
-    assert left["tolerance_band"]["healthy"] == pytest.approx([320e3, 480e3])
-    assert left["unit"] == "N s/m"
-    # the hidden truth the demo records: 50 % of the nominal left damper
-    factor = DEFECT_SCENARIOS["yaw-damper-left-50"].factors["yaw_dampers.left.c"]
-    assert record["truth"] == {
-        "yaw_dampers.left.c": pytest.approx(
-            factor * float(get_parameter(nominal, "yaw_dampers.left.c"))
-        )
-    }
-    assert factor == 0.5
-    assert [r["speed"] for r in record["runs"]] == [30.0, 50.0]
-    assert record["track_record"] == {"noise_mm": 0.3, "offset_m": 0.1}
-    assert read_verdicts(out)["date"] == "2026-03-04"  # the reader accepts its directory
-
-
-@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
-def test_demo_report_embeds_the_figures(demo):
-    _, out, _ = demo
-    report = (out / "report.md").read_text()
-    assert "![" in report and "](verdicts.png)" in report and "](signals.png)" in report
-    record = json.loads((out / "verdicts.json").read_text())
-    for row in record["verdicts"]:
-        assert f"`{row['name']}`" in report
-    for heading in ("## Runs", "## Rules used", "## Timing"):
-        assert heading in report
-    assert "false-alarm rate 0.05" in report
-    assert len(report.splitlines()) < 80  # one page
-
-
-@pytest.mark.slow  # the demo's compiles: about 1.5 min of CPU
-def test_monitor_data_replays_the_demo_from_its_files(demo, tmp_path, capsys):
-    """`monitor --data` on the runs and track record the demo wrote (CSV, 17 digits) gives the
-    demo's verdicts; `--history` over both outputs gives a two-point trend per element. (The
-    compiled residual-Jacobian program of the demo is reused: same shapes, same process.)"""
-    _, out, _ = demo
-    data = out / "data"
-    runs = [str(data / f"run{k}.csv") for k in range(2)]
-    tracks = [str(data / f"track{k}.csv") for k in range(2)]
-    again = tmp_path / "again"
-    argv = ["monitor", "--data", *runs, "--track", *tracks, "--out", str(again)]
-    assert main([*argv, "--date", "2026-03-05"]) == 0
-    first = json.loads((out / "verdicts.json").read_text())
-    second = json.loads((again / "verdicts.json").read_text())
-    assert second["date"] == "2026-03-05" and second["data"] == runs
-    assert [r["name"] for r in second["verdicts"]] == [r["name"] for r in first["verdicts"]]
-    for a, b in zip(first["verdicts"], second["verdicts"]):
-        assert a["verdict"] == b["verdict"], a["name"]
-        if a["estimate"] is not None:
-            assert b["estimate"] == pytest.approx(a["estimate"], rel=1e-6), a["name"]
-    assert "](signals.png)" in (again / "report.md").read_text()
-    trend = tmp_path / "trend"
-    assert main(["monitor", "--history", str(out), str(again), "--out", str(trend)]) == 0
-    rows = json.loads((trend / "trends.json").read_text())["trends"]
-    judged = [r["name"] for r in first["verdicts"] if r["estimate"] is not None]
-    assert [r["name"] for r in rows] == judged
-    assert all(len(r["dates"]) == 2 for r in rows)
-    capsys.readouterr()
 
 
 # --- --history -------------------------------------------------------------------------------

@@ -1,10 +1,14 @@
-# long: one module so that every monitor test shares the compiled simulation and Jacobian programs.
-"""Condition monitoring end to end (issue 19 items 1, 2, 7): the defect scenario library, the
-joint objective of several runs against the single-run objectives, `monitor` on noise-free
-data of a defective and a healthy bogie, a run the fit cannot explain, and bad input.
+# long: one module so that every monitor test (and the demo) shares the compiled programs.
+"""Condition monitoring end to end (issue 19 items 1, 2, 5, 7): the defect scenario library,
+the joint objective of several runs against the single-run objectives, `monitor` on noise-free
+data of a defective and a healthy bogie, a run the fit cannot explain, bad input, `monitor` on
+imperfect data of the demo case, and `bogie-jax demo` / `monitor --data` at the command line.
 
-Runs are short (0.5 s at 100 Hz, 30 and 50 m/s); the two noise-free data sets share one
-compiled simulation, and every `monitor` call shares one compiled residual-Jacobian program.
+Runs are short (0.5 s at 100 Hz, 30 and 50 m/s); every data set (the demo's too) shares one
+compiled simulation, and every `monitor` call with run corrections (the demo's too) shares one
+compiled residual-Jacobian program. (The demo tests were in tests/test_cli_monitor.py and the
+imperfect-data test in tests/test_monitor_robust.py; in separate files, run by separate xdist
+workers, they compiled the same simulation and Jacobian programs again.)
 """
 
 import json
@@ -16,7 +20,9 @@ import jax.random as jr
 import numpy as np
 import pytest
 
+from bogie_jax.cli import main
 from bogie_jax.cost import make_joint_objective, make_objective
+from bogie_jax.io import VERDICTS_FORMAT, read_verdicts
 from bogie_jax.measure import (
     Measurement,
     default_sensor_layout,
@@ -25,6 +31,7 @@ from bogie_jax.measure import (
 from bogie_jax.monitor import (
     DEFECT_SCENARIOS,
     FAILED_FLOOR,
+    VERDICTS,
     DefectScenario,
     RunSpec,
     ToleranceBand,
@@ -487,3 +494,171 @@ def test_joint_objective_works_with_fit_and_fisher_information(nominal, getkey):
     # the two forms round differently and the adaptive solves amplify it to the solver's
     # tolerance (measured at rtol 1e-8: 4 of 1326 residuals differ, by 1.4e-5 of the largest)
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-4 * np.max(np.abs(a)))
+
+
+# ------------------------------------------------------------------------------------------
+# imperfect data end to end (moved from tests/test_monitor_robust.py)
+# ------------------------------------------------------------------------------------------
+
+
+def test_monitor_on_imperfect_data_of_the_demo_case():
+    """The demo's case (left anti-yaw damper at 50 %, 0.5 s at 100 Hz, 30 and 50 m/s, the run
+    shapes of this module, so its compiled simulation is reused; sensor noise, a track
+    record with 0.3 mm error and 0.1 m offset) plus a yaw-rate sensor whose noise is 5 times
+    what its layout states (item 4e). With the sensors' nominal weights and Gauss-Newton intervals
+    (`noise="max", covariance="gauss-newton", remove_bias=False`) this data set gave 3 false
+    alarms (primary dampers) and the left damper's interval missed the truth (measured
+    2026-11-23 without the extra yaw-rate noise, not asserted). The defaults find the damper,
+    its 95 % interval holds the truth, no false alarm, the yaw-rate channel's noise is
+    estimated at about 5 times its stated level, and the sandwich standard errors are no
+    smaller than the Gauss-Newton ones. The run corrections are off here (item 4e alone;
+    they are tested above): with them on (the default), this data set's
+    damper interval widens from about +-1.7e4 to +-3.4e4 N s/m (sandwich; the recording
+    error leaves the offsets +-0.06 to 0.11 m and the speed factors +-0.6 to 0.9 % uncertain)
+    and the verdict becomes `not identifiable` (measured 2026-11-23, not asserted)."""
+    import dataclasses
+
+    params = manchester_benchmark()
+    runs = tuple(
+        RunSpec(speed=v, duration=0.5, sample_rate=100.0, seed=1 + k, noise_scale=1.0)
+        for k, v in enumerate((30.0, 50.0))
+    )
+    data = scenario_measurements("yaw-damper-left-50", runs, params=params, key=jr.PRNGKey(0))
+    semi = float(np.asarray(params.contact.contact_semi_distance))
+    tracks = [recorded_track(m.track, noise=0.3e-3, offset=0.1, semi_distance=semi) for m in data]
+    sensors = default_sensor_layout(params)
+    yaw = [s.name for s in sensors].index("frame_yaw_rate")
+    extra = np.zeros(len(sensors))
+    extra[yaw] = float(np.sqrt(5.0**2 - 1.0)) * float(sensors[yaw].noise_std)  # 5x in all
+    rng = np.random.default_rng(11)
+    data = [
+        dataclasses.replace(m, data=np.asarray(m.data) + extra * rng.standard_normal(m.data.shape))
+        for m in data
+    ]
+    result = monitor(data, tracks, params=params, run_corrections=False)
+    left = result.verdict("yaw_dampers.left.c")
+    assert left.verdict in ("degraded", "failed")
+    assert [v.name for v in result.alarms] == [left.name]
+    if left.name == "yaw_dampers.left.c":
+        assert left.ci95[0] <= 200e3 <= left.ci95[1]
+    fit = result.fit
+    assert fit.noise == "per-channel" and fit.covariance == "sandwich" and fit.bias_removed
+    assert fit.reweights >= 1 and fit.bandwidth >= 1
+    for k in range(2):  # 5x the stated noise (the misfit elsewhere reaches 9x on run 1)
+        assert 4.0 <= fit.channel_noise[k][yaw] <= 7.0, fit.channel_noise
+    for v in result.verdicts:
+        if math.isfinite(v.std_error):
+            assert v.std_error >= v.evidence["std_error_gauss_newton"] * (1 - 1e-12)
+
+
+# ------------------------------------------------------------------------------------------
+# `bogie-jax demo` and `monitor --data` at the command line (moved from
+# tests/test_cli_monitor.py: the demo's runs have this module's run shapes, so in this process
+# it reuses the simulation and residual-Jacobian programs compiled above)
+# ------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    import contextlib
+    import io
+
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        code = main(["demo", "--out", str(out), "--duration", "0.5", "--date", "2026-03-04"])
+    return code, out, text.getvalue()
+
+
+@pytest.mark.slow  # the demo: its compiles (about 1.5 min of CPU) when run alone
+def test_demo_runs_end_to_end_and_prints_progress_and_verdicts(demo):
+    code, out, text = demo
+    assert code == 0
+    assert "compiling the simulation" in text and "compiling the joint residual Jacobian" in text
+    assert "simulated runs 2/2 done" in text
+    assert "element" in text and "verdict" in text and "healthy band" in text
+    assert "process CPU" in text
+    for name in ("verdicts.json", "verdicts.png", "signals.png", "report.md"):
+        assert (out / name).stat().st_size > 500, name
+
+
+@pytest.mark.slow  # the demo: its compiles (about 1.5 min of CPU) when run alone
+def test_demo_verdicts_json_schema(demo):
+    _, out, _ = demo
+    record = json.loads((out / "verdicts.json").read_text())
+    assert record["format"] == VERDICTS_FORMAT and record["date"] == "2026-03-04"
+    rows = record["verdicts"]
+    assert rows
+    nominal = manchester_benchmark()
+    for row in rows:
+        assert {"name", "verdict", "estimate", "ci95", "tolerance_band", "unit"} <= set(row)
+        assert row["verdict"] in VERDICTS
+        band = row["tolerance_band"]
+        lo, hi = band["healthy"]
+        assert lo < hi and band["unit"] == row["unit"]
+        if row["estimate"] is None:
+            assert row["verdict"] == "not identifiable" and row["ci95"] is None
+        else:
+            a, b = row["ci95"]
+            assert a < row["estimate"] < b
+            # the 95 % interval is estimate +- 1.96 standard errors
+            assert b - a == pytest.approx(2 * 1.959964 * row["std_error"], rel=1e-5)
+    # the default bands: nominal +- 20 % of the hand-read nominal value (units from the specs)
+    left = next(r for r in rows if r["name"] in ("yaw_dampers.left.c", "yaw_dampers.c"))
+    assert left["tolerance_band"]["healthy"] == pytest.approx([320e3, 480e3])
+    assert left["unit"] == "N s/m"
+    # the hidden truth the demo records: 50 % of the nominal left damper
+    factor = DEFECT_SCENARIOS["yaw-damper-left-50"].factors["yaw_dampers.left.c"]
+    assert record["truth"] == {
+        "yaw_dampers.left.c": pytest.approx(
+            factor * float(get_parameter(nominal, "yaw_dampers.left.c"))
+        )
+    }
+    assert factor == 0.5
+    assert [r["speed"] for r in record["runs"]] == [30.0, 50.0]
+    assert record["track_record"] == {"noise_mm": 0.3, "offset_m": 0.1}
+    assert read_verdicts(out)["date"] == "2026-03-04"  # the reader accepts its directory
+
+
+@pytest.mark.slow  # the demo: its compiles (about 1.5 min of CPU) when run alone
+def test_demo_report_embeds_the_figures(demo):
+    _, out, _ = demo
+    report = (out / "report.md").read_text()
+    assert "![" in report and "](verdicts.png)" in report and "](signals.png)" in report
+    record = json.loads((out / "verdicts.json").read_text())
+    for row in record["verdicts"]:
+        assert f"`{row['name']}`" in report
+    for heading in ("## Runs", "## Rules used", "## Timing"):
+        assert heading in report
+    assert "false-alarm rate 0.05" in report
+    assert len(report.splitlines()) < 80  # one page
+
+
+@pytest.mark.slow  # the demo: its compiles (about 1.5 min of CPU) when run alone
+def test_monitor_data_replays_the_demo_from_its_files(demo, tmp_path, capsys):
+    """`monitor --data` on the runs and track record the demo wrote (CSV, 17 digits) gives the
+    demo's verdicts; `--history` over both outputs gives a two-point trend per element. (The
+    compiled residual-Jacobian program of the demo is reused: same shapes, same process.)"""
+    _, out, _ = demo
+    data = out / "data"
+    runs = [str(data / f"run{k}.csv") for k in range(2)]
+    tracks = [str(data / f"track{k}.csv") for k in range(2)]
+    again = tmp_path / "again"
+    argv = ["monitor", "--data", *runs, "--track", *tracks, "--out", str(again)]
+    assert main([*argv, "--date", "2026-03-05"]) == 0
+    first = json.loads((out / "verdicts.json").read_text())
+    second = json.loads((again / "verdicts.json").read_text())
+    assert second["date"] == "2026-03-05" and second["data"] == runs
+    assert [r["name"] for r in second["verdicts"]] == [r["name"] for r in first["verdicts"]]
+    for a, b in zip(first["verdicts"], second["verdicts"]):
+        assert a["verdict"] == b["verdict"], a["name"]
+        if a["estimate"] is not None:
+            assert b["estimate"] == pytest.approx(a["estimate"], rel=1e-6), a["name"]
+    assert "](signals.png)" in (again / "report.md").read_text()
+    trend = tmp_path / "trend"
+    assert main(["monitor", "--history", str(out), str(again), "--out", str(trend)]) == 0
+    rows = json.loads((trend / "trends.json").read_text())["trends"]
+    judged = [r["name"] for r in first["verdicts"] if r["estimate"] is not None]
+    assert [r["name"] for r in rows] == judged
+    assert all(len(r["dates"]) == 2 for r in rows)
+    capsys.readouterr()

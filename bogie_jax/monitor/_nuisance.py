@@ -31,7 +31,7 @@ nuisance unknown (`bogie_jax.cost.CorrectedObjective.profile_jacobian` does the 
 run corrections alone). The covariance of the estimates is the judged block of the full
 covariance of v (Gauss-Newton: the same matrix; the sandwich of the profiled Jacobian differs
 through its per-component prewhitening: tried on the data of
-tests/test_monitor_robust.py's end-to-end case it gave a 15 % larger damper standard error, so
+tests/test_monitor.py's imperfect-data case it gave a 15 % larger damper standard error, so
 the full one is used).
 
 Cost (measured 2026-11-23 on the shared 2-core machine, demo case, cold): the compile and
