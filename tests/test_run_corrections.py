@@ -177,28 +177,14 @@ def _corrections():
 def direct(measurements, nominal, records):
     """Residuals at `THETA` of each run built by `make_objective` from a measurement carrying
     the start position + offset and the speed * factor (lead-in as the data's)."""
-    out, first = [], None
+    out = []
     for m, track, off, f in zip(measurements, records, OFFSETS, FACTORS):
         shifted = dataclasses.replace(
             m, start_position=float(m.start_position) + off, speed=float(m.speed) * f
         )
         objective = make_objective(shifted, nominal, track, NAMES, settings=SETTINGS, lead_in=START)
-        first = objective if first is None else first
-        out.append(np.asarray(_residuals(_sampling_as(objective, first), THETA)))
+        out.append(np.asarray(_residuals(objective, THETA)))
     return out
-
-
-def _sampling_as(objective, first):
-    """`objective` with the static `duration` and `sample_rate` of `first`, as the joint model
-    does for its runs: the windows start at other times (START / speed), so their times carry
-    other rounding (0.49999999999999994 s against 0.5 s), which would compile the residuals
-    once per run. The samples are the same (`floor(duration * rate + 1e-9) + 1` at k / rate)."""
-    model, ref = objective.residual_model, first.residual_model
-    assert model.data.shape == ref.data.shape
-    assert abs(model.duration - ref.duration) < 1e-12
-    assert abs(model.sample_rate - ref.sample_rate) < 1e-9
-    same = dataclasses.replace(model, duration=ref.duration, sample_rate=ref.sample_rate)
-    return eqx.tree_at(lambda o: o.residual_model, objective, same)
 
 
 def test_single_run_corrections_equal_the_shifted_rescaled_run(
