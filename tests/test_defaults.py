@@ -23,15 +23,17 @@ from bogie_jax.identify import (
     simulated_annealing,
     status_names,
 )
-from bogie_jax.measure import Measurement, layout_description, synthetic_measurement
+from bogie_jax.measure import synthetic_measurement
 from bogie_jax.sensitivity import fisher_information
 from bogie_jax.simulation import SolveSettings, simulate
 from bogie_jax.track import TrackReference, perfect_track
 
 
 try:
+    from blank_data import blank_measurement
     from fixtures_cost import four_sensors, nominal, short_track  # noqa: F401
 except ImportError:  # tests/ imported as a package
+    from tests.blank_data import blank_measurement
     from tests.fixtures_cost import four_sensors, nominal, short_track  # noqa: F401
 
 
@@ -148,16 +150,7 @@ def recorded(four_sensors):
     """A measurement's layout and metadata without a simulation: 0.1 s at 200 Hz of zeros on
     the four channels (what `measured` gives, less its data values, which no check here reads;
     simulating them cost a 26 s compile)."""
-    n = 21
-    return Measurement(
-        times=np.arange(n) / 200.0,
-        data=np.zeros((n, len(four_sensors))),
-        channels=[s.name for s in four_sensors],
-        units=[s.unit for s in four_sensors],
-        speed=50.0,
-        track=TrackReference(spectrum="erri-low", seed=0, length=35.0),
-        layout=layout_description(four_sensors),
-    )
+    return blank_measurement(four_sensors, n=21, rate=200.0, speed=50.0, track_length=35.0)
 
 
 def test_track_metadata_does_not_reach_the_objective(recorded, nominal, short_track):

@@ -38,9 +38,15 @@ from bogie_jax.identify import (
     statistics,
     tolerance_bounds,
 )
-from bogie_jax.measure import Measurement, default_sensor_layout
+from bogie_jax.measure import default_sensor_layout
 from bogie_jax.params import manchester_benchmark
 from bogie_jax.track import perfect_track
+
+
+try:
+    from blank_data import blank_measurement
+except ImportError:  # tests/ imported as a package
+    from tests.blank_data import blank_measurement
 
 
 DURATION, RATE, MAX_STEPS, N_STARTS = 0.25, 100.0, 100, 4
@@ -131,13 +137,7 @@ def unsimulated():
     names = tuple(scenario.offsets)
     sensors = default_sensor_layout(nominal)
     n = round(DURATION * RATE) + 1
-    zero = Measurement(
-        times=np.arange(n) / RATE,
-        data=np.zeros((n, len(sensors))),
-        channels=[s.name for s in sensors],
-        units=[s.unit for s in sensors],
-        speed=scenario.speed,
-    )
+    zero = blank_measurement(sensors, n=n, rate=RATE, speed=scenario.speed)
     bounds = tolerance_bounds(nominal, names, scenario.band)
     return make_objective(zero, nominal, perfect_track(), names, sensors=sensors, bounds=bounds)
 

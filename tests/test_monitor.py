@@ -24,9 +24,7 @@ from bogie_jax.cli import main
 from bogie_jax.cost import make_joint_objective, make_objective
 from bogie_jax.io import VERDICTS_FORMAT, read_verdicts
 from bogie_jax.measure import (
-    Measurement,
     default_sensor_layout,
-    layout_description,
 )
 from bogie_jax.monitor import (
     DEFECT_SCENARIOS,
@@ -48,6 +46,12 @@ from bogie_jax.monitor import (
 from bogie_jax.params import element_names, get_parameter, manchester_benchmark, parameter_specs
 from bogie_jax.simulation import SolveSettings
 from bogie_jax.track import TrackReference
+
+
+try:
+    from blank_data import blank_measurement
+except ImportError:  # tests/ imported as a package
+    from tests.blank_data import blank_measurement
 
 
 RUNS = (
@@ -421,16 +425,7 @@ def _blank(nominal, channels=None, speed=30.0):
     sensors = default_sensor_layout(nominal)
     if channels is not None:
         sensors = tuple(s for s in sensors if s.name in channels)
-    n = 51
-    return Measurement(
-        times=np.arange(n) / 100.0,
-        data=np.zeros((n, len(sensors))),
-        channels=[s.name for s in sensors],
-        units=[s.unit for s in sensors],
-        speed=speed,
-        track=TrackReference(spectrum="erri-low", seed=0, length=100.0),
-        layout=layout_description(sensors),
-    )
+    return blank_measurement(sensors, n=51, rate=100.0, speed=speed, track_length=100.0)
 
 
 def test_monitor_rejects_bad_input_before_fitting(nominal):
