@@ -274,12 +274,43 @@ def test_cli_bad_data_file(tmp_path):
 def test_sharded_multistart_equals_one_device(clean, multistart4):
     """The batch sharded over 4 devices gives the fits run one by one on one device (`fit`,
     which compiles one unbatched program: a second vmapped compilation on one device would
-    cost minutes on a small CPU)."""
-    for start, end, cost in zip(multistart4.starts, multistart4.ends, multistart4.costs):
+    cost minutes on a small CPU): the same status, cost and on-bound flags for every start, and
+    the same estimates where the fit is well determined (not on a bound).
+
+    Why the two differ at all: same solver and starts, but two compiled programs (the batch
+    steps each fit as a vmapped lane of a queue inside `shard_map`, `fit` runs optimistix's
+    loop unbatched). XLA vectorises and fuses them differently, and the adaptive ODE steps turn
+    those last-bit differences into different step sequences, so the objective itself differs
+    at the solver's error level: at one theta the residuals of an unbatched and a vmapped
+    program differ by up to 1.6e-4 (noise-weighted; max |r| 1.7e-4 near the truth), the costs
+    by 4e-4 at J = 2055 (measured at the ends of this batch). Each path stops where its own
+    cost stops falling by more than that: near the truth (J ~ 1e-8) the estimates agree to
+    ~3e-7. Start 0 ends at a bound instead (primary.kz on its upper bound, yaw_dampers.c 3e-5
+    of its band below its own): in logistic coordinates that corner lies at infinity, the cost
+    keeps falling towards it with a gradient ~ (1 - u), and the LM stops on its step test (not
+    the step limit: 400 steps stop at the same points) once the decrease is at that numerical
+    level, which happens at different points of the valley: yaw_dampers.c 599988.5 (43 steps)
+    vs 599994.9 N s/m (52 steps), 1.1e-5 apart, costs 6e-7 apart. No LM tolerance makes that
+    point well defined (there is no stationary point, and the two objectives differ), so the
+    estimates of a start on a bound are not compared; its cost and flags are."""
+    lower = np.asarray(clean.objective.selection.lower)
+    upper = np.asarray(clean.objective.selection.upper)
+    bound_tol = 1e-6  # `fit`'s default: a fraction of the box width
+    compared = 0
+    for k, (start, end, cost) in enumerate(
+        zip(multistart4.starts, multistart4.ends, multistart4.costs)
+    ):
         single = fit(clean.objective, start=start, max_steps=MAX_STEPS, throw=False)
-        # same solver, same start; only vmap/sharding differs, which may change rounding
-        # (a start that ends in a local minimum on a bound sits in a flat valley: ~1e-6 there)
-        np.testing.assert_allclose(single.estimates, end, rtol=1e-5)
-        # (J ~ 1e-7 where the noise-free fits stop: the stopping point depends on rounding; at a
+        assert single.status_name == multistart4.status[k]
+        # (J ~ 1e-8 where the noise-free fits stop: the stopping point depends on rounding; at a
         # minimum on a bound the cost is not stationary, so it moves with the estimate: 1e-5)
         np.testing.assert_allclose(float(single.cost), cost, rtol=1e-5, atol=1e-6)
+        # both ends on the same bounds (the flags of `statistics`, from the sharded end)
+        u = (end - lower) / (upper - lower)
+        on_bound = np.asarray(single.on_bound)
+        np.testing.assert_array_equal((u < bound_tol) | (u > 1.0 - bound_tol), on_bound)
+        if not on_bound.any():
+            np.testing.assert_allclose(single.estimates, end, rtol=1e-5)
+            compared += 1
+    # the check cannot pass on bounds alone (with this key: starts 1-3 interior, 0 on a bound)
+    assert compared >= N_STARTS - 1
