@@ -288,11 +288,14 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
     ~3e-7. Start 0 ends at a bound instead (primary.kz on its upper bound, yaw_dampers.c 3e-5
     of its band below its own): in logistic coordinates that corner lies at infinity, the cost
     keeps falling towards it with a gradient ~ (1 - u), and the LM stops on its step test (not
-    the step limit: 400 steps stop at the same points) once the decrease is at that numerical
-    level, which happens at different points of the valley: yaw_dampers.c 599988.5 (43 steps)
-    vs 599994.9 N s/m (52 steps), 1.1e-5 apart, costs 6e-7 apart. No LM tolerance makes that
-    point well defined (there is no stationary point, and the two objectives differ), so the
-    estimates of a start on a bound are not compared; its cost and flags are."""
+    the step limit: 400 steps stop at the same points) once its trial steps, rejected where the
+    predicted decrease is below that numerical level, have shrunk to nothing, which happens at
+    different points of the valley: yaw_dampers.c 599988.5 (43 steps)
+    vs 599994.9 N s/m (52 steps), 1.1e-5 apart, costs 6e-7 apart. A tighter LM tolerance does
+    not make that point well defined (there is no stationary point, and the two objectives
+    differ): with rtol = atol = 1e-12 instead of 1e-10, `fit` stopped at the same four points
+    (same step counts) and the batch at 599997.9 N s/m (57 steps), 5e-6 on the other side. So
+    the estimates of a start on a bound are not compared; its status, cost and flags are."""
     lower = np.asarray(clean.objective.selection.lower)
     upper = np.asarray(clean.objective.selection.upper)
     bound_tol = 1e-6  # `fit`'s default: a fraction of the box width
