@@ -98,8 +98,9 @@ def add_parser(subparsers):
     p.add_argument(
         "--rtol",
         type=float,
-        default=1e-8,
-        help="solver relative tolerance (atol = 1e-3 rtol; default 1e-8)",
+        default=1e-6,
+        help="ODE solver relative tolerance of the data and the fits (atol = 1e-3 rtol; "
+        "default 1e-6, as the library's SolveSettings: atol 1e-9)",
     )
     p.add_argument(
         "--max-steps", type=int, default=100, help="local solver steps per start (default 100)"
