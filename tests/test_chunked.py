@@ -20,14 +20,16 @@ from bogie_jax.identify import (
 )
 
 
-# Two minima in x: global at (1, 0.5) with cost 0, a local one near (-0.98, 0.5); residuals are
-# NaN for x < -1.5 (a "failed simulation" region), so some starts fail and are recorded as such.
+# Two minima in x: global at (1, 0.5), a local one near (-0.98, 0.5); residuals are NaN for
+# x < -1.5 (a "failed simulation" region), so some starts fail and are recorded as such. The
+# last residual no parameter explains (a model error): the cost at the minimum is 0.005, not 0,
+# so the noise variance and the covariance are not degenerate.
 TR = BoxTransform([-2.0, -1.0], [2.0, 2.0], names=("x", "y"))
 
 
 def _residuals(theta, args):
     x, y = TR.to_physical(theta)
-    r = jnp.stack([x**2 - 1.0, 0.2 * (x - 1.0), y - 0.5])
+    r = jnp.stack([x**2 - 1.0, 0.2 * (x - 1.0), y - 0.5, jnp.ones_like(x) * 0.1])
     return jnp.where(x < -1.5, jnp.nan, r)
 
 
@@ -89,6 +91,19 @@ def test_resume_after_interrupt_gives_the_same_result(whole, tmp_path):
     third = fit_multistart_chunked(PROBLEM, record=path, **KW)
     assert third.resumed == N and third.compile_time == 0.0
     np.testing.assert_allclose(third.result.costs, a.costs, rtol=1e-9, atol=1e-15)
+    # the best fit's statistics: `run` forms them from the residual Jacobian its fit ended with
+    # (no evaluation after the fits), `third` (every start read back: no fit state) evaluates
+    # the residual Jacobian at the same theta (`statistics`, one more evaluation in the counts)
+    c = third.result.best
+    np.testing.assert_array_equal(c.theta, a.best.theta)
+    assert int(a.best.num_fn_evals) == int(np.sum(a.num_fn_evals))
+    assert int(c.num_fn_evals) == int(np.sum(a.num_fn_evals)) + 1
+    assert c.dof == a.best.dof == 2 and float(a.best.cost) == pytest.approx(0.005, rel=1e-6)
+    for field in ("estimates", "cost", "noise_variance", "std_errors", "ci95", "covariance"):
+        np.testing.assert_allclose(getattr(a.best, field), getattr(c, field), rtol=1e-10)
+    np.testing.assert_allclose(a.best.correlation, c.correlation, rtol=1e-10, atol=1e-12)
+    np.testing.assert_array_equal(a.best.on_bound, c.on_bound)
+    assert a.best.rank == c.rank == 2
 
 
 def test_record_of_another_run_is_refused(whole):

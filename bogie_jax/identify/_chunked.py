@@ -151,6 +151,31 @@ def _concat(batches: list[BatchResult]) -> BatchResult:
     return jax.tree.map(lambda *xs: jnp.concatenate([jnp.asarray(x) for x in xs]), *batches)
 
 
+class _BestJacobian:
+    """The residual Jacobian of the lowest-cost successful start run so far (what
+    `cluster_minima` makes the best: lowest cost, the lowest design index among equal ones), so
+    that the chunks' Jacobians need not all be kept: one `(m, n)` array, not one per start."""
+
+    def __init__(self):
+        self.index, self.cost, self.jacobian = None, np.inf, None
+
+    def update(self, indices, batch: BatchResult) -> BatchResult:
+        """Keep the chunk's best Jacobian if it beats the best so far; the chunk without its
+        Jacobians."""
+        out, costs = batch.outputs
+        if out.jacobian is None:
+            return batch
+        costs = np.where(np.asarray(batch.failed), np.inf, np.asarray(costs))
+        j = int(np.argmin(costs))  # first among equal costs: the lowest design index
+        if costs[j] < self.cost:
+            self.index, self.cost, self.jacobian = indices[j], costs[j], out.jacobian[j]
+        out = dataclasses.replace(out, jacobian=None)
+        return BatchResult(outputs=(out, batch.outputs[1]), failed=batch.failed)
+
+    def of(self, design_index: int):
+        return self.jacobian if design_index == self.index else None
+
+
 def fit_multistart_chunked(
     problem,
     *,
@@ -198,6 +223,7 @@ def fit_multistart_chunked(
     resumed = len(done)
     todo = [i for i in range(n_starts) if i not in done]
     compile_time, interrupted = 0.0, False
+    best_jacobian = _BestJacobian()
     pieces = []  # (design indices, BatchResult)
     if done:
         pieces.append((sorted(done), _outputs_from_records([done[i] for i in sorted(done)])))
@@ -220,7 +246,7 @@ def fit_multistart_chunked(
             records = _chunk_records(problem, thetas[jnp.asarray(idx)], batch)
             if path is not None:
                 _append(path, idx, records, batch.outputs[0])
-            pieces.append((idx, batch))
+            pieces.append((idx, best_jacobian.update(idx, batch)))
             n_done += len(idx)
             if on_chunk is not None:
                 now = time.perf_counter()
@@ -244,6 +270,7 @@ def fit_multistart_chunked(
             cluster_tol=cluster_tol,
             bound_tol=bound_tol,
             throw=False,
+            jacobian_of=lambda h: best_jacobian.of(indices[h]),
         )
     now = time.perf_counter()
     return ChunkedMultistart(

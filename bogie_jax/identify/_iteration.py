@@ -24,11 +24,20 @@ from ._problem import is_successful
 
 
 def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int):
-    """An `IterativeMember` of a least-squares fit with input `(theta0, data)`, output a
-    `LocalOutput`.
+    """An `IterativeMember` of a least-squares fit with input `(theta0, data)`, output
+    `(LocalOutput, cost)`: the fit, with `jacobian`, and its cost `0.5 r^T r` at `theta`.
 
     - `problem_of(data)`: the member's `LeastSquaresProblem` (its arrays travel in `data`, so
       the members of one batch may fit different data sets).
+
+    The cost and Jacobian come from the solver's state, not from a new evaluation: after every
+    `solver.step` of the Gauss-Newton family, `state.f_info` holds the residuals and the
+    linearisation at the iterate the step returns (the new point if the step was accepted, else
+    the previous iterate and its `f_info`, in one `filter_cond`; the first step is always
+    accepted, as optimistix's searches must). Its `jac` is the product `J @ t` of the
+    linearisation (`_jacobian.JacobianResiduals`: a stored matrix), materialised here by
+    `as_matrix` (products with unit vectors: exact). A member is stepped at least once, so the
+    output never holds the placeholders of `init`.
     """
     solver = method.solver
     options, tags = {}, frozenset()
@@ -46,16 +55,24 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
             jnp.all(jnp.isfinite(theta)), result, optx.RESULTS.nonfinite
         )
 
+    def fit_info(state):
+        """`(cost, J)` at the iterate of `state` (see above)."""
+        r = jnp.ravel(state.f_info.residual)
+        return 0.5 * jnp.sum(r**2), state.f_info.jac.as_matrix()
+
+    # carry: (theta, steps, the state's arrays, terminate, result, data, cost, Jacobian)
     def init(x):
         theta0, data = x
         problem = problem_of(data)
         state = solver_init(theta0, problem)
         terminate, result = status(theta0, problem, state)
         dynamic = eqx.partition(state, eqx.is_array)[0]
-        return theta0, jnp.asarray(0), dynamic, terminate, result, data
+        shapes = eqx.filter_eval_shape(fit_info, state)
+        cost, jac = (jnp.zeros(s.shape, s.dtype) for s in shapes)
+        return theta0, jnp.asarray(0), dynamic, terminate, result, data, cost, jac
 
     def step(carry):
-        theta, steps, dynamic, _, _, data = carry
+        theta, steps, dynamic, _, _, data, _, _ = carry
         problem = problem_of(data)
         # the state's static part (operator structures) rebuilt in the caller's trace: inside
         # `shard_map` its shape structs carry the mesh, so one built outside would not match
@@ -63,19 +80,20 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
         state = eqx.combine(dynamic, static)
         new_theta, state, _ = solver.step(fn, theta, problem, options, state, tags)
         terminate, result = status(theta, problem, state)  # optimistix tests the old iterate
+        cost, jac = fit_info(state)  # at `new_theta`
         dynamic = eqx.partition(state, eqx.is_array)[0]
-        return new_theta, steps + 1, dynamic, terminate, result, data
+        return new_theta, steps + 1, dynamic, terminate, result, data, cost, jac
 
     def done(carry):
-        _, steps, _, terminate, result, _ = carry
+        _, steps, _, terminate, result, _, _, _ = carry
         return terminate | (result != optx.RESULTS.successful) | (steps >= max_steps)
 
     def output(carry):
-        theta, steps, _, terminate, result, _ = carry
+        theta, steps, _, terminate, result, _, cost, jac = carry
         # as optimistix: still running at the step limit -> nonlinear_max_steps_reached
         running = (result == optx.RESULTS.successful) & ~terminate
         result = optx.RESULTS.where(running, optx.RESULTS.nonlinear_max_steps_reached, result)
-        return LocalOutput(theta, result, steps, steps, steps)
+        return LocalOutput(theta, result, steps, steps, steps, jacobian=jac), cost
 
     return IterativeMember(init=init, step=step, done=done, output=output)
 
@@ -112,16 +130,14 @@ def supports_queue(method) -> bool:
 
 def queued_fits(method, problem_of, max_steps: int, *, lanes: int, devices=None):
     """`run((thetas, data)) -> BatchResult` of `(LocalOutput, cost)`: least-squares fits as a
-    queue with `lanes` fits in flight per device (`bogie_jax.queued_batch`), the cost at every
-    fit's end, and unsuccessful statuses flagged as failed."""
-
-    def cost(x, out):
-        return out, problem_of(x[1]).cost(out.theta)
-
+    queue with `lanes` fits in flight per device (`bogie_jax.queued_batch`), each with its cost
+    and residual Jacobian (`LocalOutput.jacobian`) at its end taken from the solver's state
+    (`least_squares_member`: no evaluation after the fits), unsuccessful statuses flagged as
+    failed (and, as every batch output, non-finite ones: a start whose cost or Jacobian is not
+    finite has no statistics)."""
     return queued_runner(
         least_squares_member(method, problem_of, max_steps),
         lanes=lanes,
         devices=devices,
-        post=cost,
         failure_fn=lambda out: ~is_successful(out[0].result),
     )

@@ -24,13 +24,16 @@ from ._problem import as_problem, is_successful, param_names, start_theta, statu
 class LocalOutput(eqx.Module):
     """Raw outcome of one local solve (vmappable: no `Solution` objects). `result`: the solver
     status, an `optimistix.RESULTS` (batched along the member axis in a batch; on the host read
-    it with `status_names`, store it by name and read it back with `results_from_names`)."""
+    it with `status_names`, store it by name and read it back with `results_from_names`).
+    `jacobian`: the residual Jacobian `dr/dtheta` (m, n) at `theta` where the fit's own state
+    holds it (the queued Gauss-Newton family, `_iteration.least_squares_member`), else `None`."""
 
     theta: jax.Array
     result: optx.RESULTS
     num_steps: jax.Array
     num_fn_evals: jax.Array
     num_jac_evals: jax.Array
+    jacobian: jax.Array | None = None
 
 
 class AbstractLocalMethod(eqx.Module):
@@ -198,7 +201,9 @@ class FitResult(eqx.Module):
     is the whole `Covariance` (rank, condition number, null directions in `theta`): a
     rank-deficient fit has infinite standard errors for the parameters of its unidentifiable
     combinations. `ci95` uses the Student-t quantile with `dof` degrees of freedom. Evaluation
-    counts include the final residual + Jacobian evaluation for the statistics. `status`:
+    counts include the final residual + Jacobian evaluation for the statistics where one is
+    made (`fit`, and a multistart whose fits do not end with their Jacobian: see
+    `_multistart.collect`). `status`:
     `optimistix.RESULTS`; `wall_time` [s]: the fit's time (compile included on a first call).
     """
 
@@ -257,27 +262,26 @@ def t_quantile(q: float, dof: int):
     return 0.5 * (lo + hi)
 
 
-def statistics(problem, theta, bound_tol: float):
-    """Cost, Gauss-Newton covariance and on-bound flags at `theta` (jit-safe).
+def fit_statistics(transform, theta, cost, jac, bound_tol):
+    """Gauss-Newton covariance and on-bound flags at `theta` from the cost `J = 0.5 r^T r` and
+    the residual Jacobian `jac = dr/dtheta` (m, n) there (jit-safe; the one place the fits'
+    statistics are formed).
 
-    The residual Jacobian is `bogie_jax.cost.residual_jacobian`, the covariance
-    `bogie_jax.cost.covariance_from_jacobian` in `theta` (dimensionless log / logit
-    coordinates), mapped to physical units by the transform's derivative (element-wise
-    transforms: a diagonal `D`)."""
-    r, jac = residual_jacobian(problem, theta, problem.args)
+    The covariance is `bogie_jax.cost.covariance_from_jacobian` in `theta` (dimensionless log /
+    logit coordinates) with `s^2 = 2 J / (m - n)`, mapped to physical units by the transform's
+    derivative (element-wise transforms: a diagonal `D`; the delta method)."""
     m, n = jac.shape
     dof = m - n
-    cost = 0.5 * jnp.sum(r**2)
     s2 = 2.0 * cost / dof if dof > 0 else jnp.asarray(jnp.nan)
-    estimates, d = jax.jvp(problem.transform.to_physical, (theta,), (jnp.ones_like(theta),))
+    estimates, d = jax.jvp(transform.to_physical, (theta,), (jnp.ones_like(theta),))
     uncertainty = covariance_from_jacobian(jac, sigma2=s2, scale=d)
     se = uncertainty.std_errors
     half = t_quantile(0.975, max(dof, 1)) * se
-    lower, upper = problem.transform.lower, problem.transform.upper
+    lower, upper = transform.lower, transform.upper
     u = (estimates - lower) / (upper - lower)
     return dict(
         estimates=estimates,
-        cost=cost,
+        cost=jnp.asarray(cost),
         std_errors=se,
         ci95=jnp.stack([estimates - half, estimates + half], axis=-1),
         correlation=uncertainty.correlation,
@@ -287,6 +291,13 @@ def statistics(problem, theta, bound_tol: float):
         dof=dof,
         on_bound=(u < bound_tol) | (u > 1.0 - bound_tol),
     )
+
+
+def statistics(problem, theta, bound_tol: float):
+    """Cost, Gauss-Newton covariance and on-bound flags at `theta` (jit-safe): the residuals
+    and their Jacobian by `bogie_jax.cost.residual_jacobian`, then `fit_statistics`."""
+    r, jac = residual_jacobian(problem, theta, problem.args)
+    return fit_statistics(problem.transform, theta, 0.5 * jnp.sum(r**2), jac, bound_tol)
 
 
 @eqx.filter_jit

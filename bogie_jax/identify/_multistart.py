@@ -22,7 +22,7 @@ import numpy as np
 from ..batch import batch_runner
 from ..qmc import sobol_sequence
 from ._iteration import queue_lanes, queued_fits, supports_queue
-from ._local import FitResult, as_method, statistics
+from ._local import FitResult, as_method, fit_statistics, statistics
 from ._problem import (
     as_problem,
     bounds,
@@ -151,8 +151,31 @@ def local_member(problem, method, max_steps):
     return member
 
 
-def collect(problem, starts_theta, batch, wall, *, cluster_tol, bound_tol, throw, extra_fevs=0):
-    """Turn a batch of `(LocalOutput, cost)` into a `MultistartResult`."""
+# the best fit's statistics: from the Jacobian its fit ended with (a small program), or, for
+# methods whose state holds none, from a new residual-Jacobian evaluation
+_FIT_STATISTICS = eqx.filter_jit(fit_statistics)
+_STATISTICS = eqx.filter_jit(statistics)
+
+
+def collect(
+    problem,
+    starts_theta,
+    batch,
+    wall,
+    *,
+    cluster_tol,
+    bound_tol,
+    throw,
+    extra_fevs=0,
+    jacobian_of=None,
+):
+    """Turn a batch of `(LocalOutput, cost)` into a `MultistartResult`.
+
+    The best fit's statistics use the residual Jacobian its fit ended with (`out.jacobian`, or
+    `jacobian_of(h)` for member `h` where the outputs carry none; `None` if unknown), with the
+    batch's cost at that point; without one they evaluate the residual Jacobian again
+    (`statistics`, one more residual and Jacobian evaluation in the counts).
+    """
     out, costs = batch.outputs
     tr = problem.transform
     lower, upper = bounds(tr)
@@ -166,13 +189,22 @@ def collect(problem, starts_theta, batch, wall, *, cluster_tol, bound_tol, throw
     best = None
     if heads:
         h = heads[0]
-        stats = eqx.filter_jit(statistics)(problem, out.theta[h], bound_tol)
+        tol = jnp.asarray(bound_tol, dtype=float)  # traced: another value does not recompile
+        if out.jacobian is not None:
+            jac = out.jacobian[h]
+        else:
+            jac = None if jacobian_of is None else jacobian_of(h)
+        if jac is None:
+            stats, extra = _STATISTICS(problem, out.theta[h], tol), 1
+        else:
+            cost = jnp.asarray(costs[h], dtype=float)
+            stats, extra = _FIT_STATISTICS(tr, out.theta[h], cost, jnp.asarray(jac), tol), 0
         best = FitResult(
             names=param_names(tr, lower.size),
             theta=out.theta[h],
             num_steps=out.num_steps[h],
-            num_fn_evals=jnp.asarray(n_fev.sum() + 1),
-            num_jac_evals=jnp.asarray(np.asarray(out.num_jac_evals).sum() + 1),
+            num_fn_evals=jnp.asarray(n_fev.sum() + extra),
+            num_jac_evals=jnp.asarray(np.asarray(out.num_jac_evals).sum() + extra),
             status=jax.tree.map(lambda x: x[h], out.result),
             wall_time=np.asarray(wall),
             **stats,
