@@ -3,8 +3,9 @@
 Checked against an independent solve of the numpy twin's accelerations (`scipy.optimize.root`
 on `tests/reference/bogie_twin.py`), for the symmetric named sets (zeros) and an asymmetric
 bogie (left anti-yaw damper at 0, primary 1L vertical spring +30 %, secondary left lateral
-damper at 50 %); its derivative (implicit function theorem) against central differences; and a
-simulation started there (the default initial state of `simulate`) stays there.
+damper at 50 %); its derivative (implicit function theorem, forward and reverse mode) against
+central differences; its failure results (step limit, non-finite parameters) per bogie under
+`vmap`; and a simulation started there (the default initial state of `simulate`) stays there.
 """
 
 import diffrax as dfx
@@ -12,6 +13,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 import pytest
 import scipy.optimize
 
@@ -136,6 +138,30 @@ def test_rest_state_derivative_matches_central_differences(solve, asymmetric):
     assert scale > 0
     np.testing.assert_allclose(np.asarray(fwd), fd, rtol=0, atol=1e-6 * scale)
     np.testing.assert_allclose(np.asarray(rev), fd, rtol=0, atol=1e-6 * scale)
+
+
+def test_failures_are_reported(solve, asymmetric):
+    """Under `vmap` with `throw=False` (as in the fits' batches), each bogie gets its own
+    result: the asymmetric one with `max_steps=2` (it needs 4) ends `max_steps_reached` after
+    2 steps, a NaN spring stiffness `nonlinear_divergence` after 1, the symmetric one
+    `successful` after 1 (q = 0 is its root); with `throw=True` the NaN bogie raises."""
+    nominal = bj.manchester_benchmark()
+    broken = set_parameters(nominal, {"primary.1L.kz": float("nan")})
+    batch = jax.tree.map(lambda *x: jnp.stack(x), asymmetric, broken, nominal)
+    sol = eqx.filter_jit(jax.vmap(lambda p: static_equilibrium_solve(p, max_steps=2, throw=False)))(
+        batch
+    )
+    expected = (
+        optx.RESULTS.max_steps_reached,
+        optx.RESULTS.nonlinear_divergence,
+        optx.RESULTS.successful,
+    )
+    for i, result in enumerate(expected):
+        assert bool(np.asarray(sol.result == result)[i]), (i, result)
+    np.testing.assert_array_equal(np.asarray(sol.stats["num_steps"]), [2, 1, 1])
+    assert np.abs(np.asarray(sol.value[2])).max() <= 1e-12
+    with pytest.raises(Exception, match="diverged"):
+        jax.block_until_ready(solve(broken).value)
 
 
 def test_simulation_from_rest_stays_at_rest(asymmetric, q0):

@@ -9,19 +9,31 @@ primary springs, the gravitational stiffness of the conical wheels (paper eq. 2:
 -W xi for yaw) and the creep forces of the rolling wheelset at q_dot = 0 (longitudinal creepage
 -+lambda y / r0 and lateral creepage -yaw do not depend on the speed, so neither does q0).
 
-Newton's method (optimistix, with the plain-XLA `HouseholderQR` linear solver, which works inside
-`shard_map` where lineax's `LU` does not) from q = 0; the Jacobian da/dq = -M^-1 K_eff is
-non-singular for a bogie whose every coordinate is held (tested). q0 is differentiable with
-respect to the parameters by the implicit function theorem (`jax.lax.custom_root`): dq0/dp =
--(da/dq)^-1 da/dp, in forward and reverse mode. A symmetric bogie has q0 = 0 (its springs carry
-their design loads at q = 0).
+Newton's method from q = 0 in a `lax.while_loop` (Nocedal & Wright, Numerical Optimization,
+2nd ed., section 11.1): the 10 x 10 Jacobian J = da/dq by `jax.jacfwd`, the step by Householder
+QR (`_householder`, plain XLA, which works inside `shard_map` where lineax's `LU` does not).
+J = -M^-1 K_eff is non-singular for a bogie whose every coordinate is held (tested). q0 is
+differentiable with respect to the parameters p by the implicit function theorem (Nocedal &
+Wright, appendix A): differentiating a(q0(p), p) = 0 gives dq0 = -J(q0)^-1 (da/dp . dp). That
+is a `jax.custom_jvp` rule, linear in dp (its solve in `jax.lax.custom_linear_solve`, so that
+reverse mode transposes it), with J(q0) from the loop's last pass: the Newton iterations are
+never differentiated and no second derivative of the vector field is formed. A symmetric
+bogie has q0 = 0 (its springs carry their design loads at q = 0).
+
+Why not `optimistix.root_find` (`Newton` in `jax.lax.custom_root`, as before): inside the
+fits' objectives (linearised, vmapped and jvp'd) its generic machinery (a `jax.linearize` and a
+lineax operator per Newton step, its own implicit adjoint inside `custom_root`) took 197 s of
+the 275 s of tracing the default multistart identification program. This loop keeps its
+iterates and stopping test (same q0 and step counts, to rounding) and still returns an
+`optimistix.Solution`.
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import optimistix as optx
 
-from .._householder import HouseholderQR, solve_square
+from .._householder import back_substitute, triangularise
 from ..params import BogieParams, ModelOptions
 from ..track import perfect_track
 from ._dynamics import accelerations, build_model
@@ -37,10 +49,85 @@ def _residual(q, model):
     return accelerations(model, 0.0, q, jnp.zeros_like(q))
 
 
+def _rest_model(params: BogieParams, options: ModelOptions):
+    return build_model(params, speed=EQUILIBRIUM_SPEED, track=perfect_track(), options=options)
+
+
 def equilibrium_residual(params: BogieParams, q, *, options: ModelOptions = ModelOptions()):
     """The accelerations (10,) at rest state candidate `q` on a perfect track (zero at q0)."""
-    model = build_model(params, speed=EQUILIBRIUM_SPEED, track=perfect_track(), options=options)
-    return _residual(jnp.asarray(q, dtype=float), model)
+    return _residual(jnp.asarray(q, dtype=float), _rest_model(params, options))
+
+
+def _newton(model, rtol: float, atol: float, max_steps: int):
+    """Newton's method on `_residual` from q = 0: (q0, J, steps, converged, solvable), J the
+    Jacobian da/dq at q0 (10, 10) [1/s^2, ...].
+
+    The stopping test is optimistix's `Newton` with Cauchy termination: after the step
+    dq = J(q)^-1 a(q) from q, stop when max |dq| / (atol + rtol |q|) < 1 and max |a(q)| < atol,
+    and return q0 = q - dq. One more pass of the loop then evaluates J at q0 (for the implicit
+    function theorem) without stepping, so that the program holds one site of the Jacobian."""
+
+    def body(carry):
+        q, _, steps, converged, solvable, _ = carry
+        jac, f = jax.jacfwd(lambda x: (_residual(x, model),) * 2, has_aux=True)(q)
+        r, qtf = triangularise(jac, f)
+        dq = back_substitute(r, qtf)
+        # as `HouseholderQR`: singular when a diagonal of R is at rounding level of the largest
+        diag = jnp.abs(jnp.diagonal(r))
+        ok = jnp.all(diag > jnp.finfo(r.dtype).eps * N_DOF * jnp.max(diag))
+        ok = ok & jnp.all(jnp.isfinite(dq)) & jnp.all(jnp.isfinite(q))
+        small_step = jnp.max(jnp.abs(dq) / (atol + rtol * jnp.abs(q))) < 1
+        done = small_step & (jnp.max(jnp.abs(f)) < atol)
+        # `converged` in the previous pass: q is q0 and this pass only evaluated J there
+        return (
+            jnp.where(converged, q, q - dq),
+            jac,
+            jnp.where(converged, steps, steps + 1),
+            converged | done,
+            jnp.where(converged, solvable, ok),
+            converged,
+        )
+
+    def cond(carry):
+        _, _, steps, converged, solvable, finished = carry
+        return ~finished & solvable & (converged | (steps < max_steps))
+
+    q = jnp.zeros(N_DOF, dtype=float)
+    false = jnp.array(False)
+    init = (q, jnp.zeros((N_DOF, N_DOF)), jnp.zeros((), int), false, jnp.array(True), false)
+    return jax.lax.while_loop(cond, body, init)[:5]
+
+
+@eqx.filter_custom_jvp
+def _implicit(q0, jac, params, *, options):
+    """q0 (the root of the equilibrium of `params`, computed without derivatives), made
+    differentiable with respect to `params` by the implicit function theorem (see the module
+    docstring), `jac` da/dq at q0."""
+    del jac, params, options
+    return q0
+
+
+@_implicit.def_jvp
+def _implicit_jvp(primals, tangents, *, options):
+    q0, jac, params = primals
+    *_, t_params = tangents  # q0 and jac come without derivatives (`stop_gradient`)
+    if t_params is None or not jax.tree.leaves(t_params):
+        return q0, None
+    residual_of = lambda p: _residual(q0, _rest_model(p, options))
+    _, da = eqx.filter_jvp(residual_of, (params,), (t_params,))
+    # dq0 = -J^-1 da, transposable for reverse mode
+    dq0 = jax.lax.custom_linear_solve(
+        lambda x: jac @ x,
+        da,
+        solve=lambda _, b: _solve(jac, b),
+        transpose_solve=lambda _, b: _solve(jac.T, b),
+    )
+    return q0, -dq0
+
+
+def _solve(a, b):
+    """x with A x = b (10, 10) by Householder QR."""
+    return back_substitute(*triangularise(a, b))
 
 
 def static_equilibrium_solve(
@@ -52,48 +139,28 @@ def static_equilibrium_solve(
     max_steps: int = 32,
     throw: bool = True,
 ) -> optx.Solution:
-    """The optimistix `Solution` of the static equilibrium (see `static_equilibrium`); its
-    `value` is q0, its `result` says whether Newton converged (`aux` and `state` are `None`).
+    """The static equilibrium (see `static_equilibrium`) as an `optimistix.Solution`: `value`
+    q0, `result` `successful`, `max_steps_reached` (no convergence in `max_steps` Newton
+    steps) or `nonlinear_divergence` (a singular or non-finite Newton step), `stats`
+    `num_steps` and `max_steps` (`aux` and `state` are `None`).
 
-    The root is found by `optimistix.Newton`; its derivatives come from the implicit function
-    theorem through `jax.lax.custom_root` (dq0/dp = -(da/dq)^-1 da/dp, the linear solves by
-    `HouseholderQR` in `jax.lax.custom_linear_solve`, transposable for reverse mode) rather than
-    optimistix's `ImplicitAdjoint`, whose closure-converted Jacobian operator fails inside
-    `shard_map` with jax 0.10 (its shape structs carry the mesh), where the sharded multistart
-    batch differentiates the equilibrium."""
-    model = build_model(params, speed=EQUILIBRIUM_SPEED, track=perfect_track(), options=options)
-    solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=HouseholderQR())
-
-    def newton(f, q_init):
-        sol = optx.root_find(lambda q, _: f(q), solver, q_init, max_steps=max_steps, throw=throw)
-        # aux as floats: `custom_root` gives integer aux outputs integer tangents, which JAX
-        # rejects (jax 0.10)
-        ok = jnp.where(sol.result == optx.RESULTS.successful, 1.0, 0.0)
-        return sol.value, (ok, jnp.asarray(sol.stats["num_steps"], dtype=float))
-
-    q0, (ok, steps) = jax.lax.custom_root(
-        lambda q: _residual(q, model),
-        jnp.zeros(N_DOF, dtype=float),
-        newton,
-        _tangent_solve,
-        has_aux=True,
-    )
+    Newton's method in a `lax.while_loop` (not `optimistix.root_find`: see the module
+    docstring); derivatives of q0 by the implicit function theorem, dq0/dp =
+    -(da/dq)^-1 da/dp, in forward and reverse mode (the linear solves by Householder QR in
+    `jax.lax.custom_linear_solve`), without differentiating the iterations. Works inside
+    `vmap` and `shard_map` (no LAPACK call) with `throw=False`."""
+    dynamic, static = eqx.partition(params, eqx.is_inexact_array)
+    fixed = eqx.combine(jax.lax.stop_gradient(dynamic), static)
+    q, jac, steps, converged, solvable = _newton(_rest_model(fixed, options), rtol, atol, max_steps)
     failure = optx.RESULTS.where(
-        steps >= max_steps, optx.RESULTS.max_steps_reached, optx.RESULTS.nonlinear_divergence
+        solvable, optx.RESULTS.max_steps_reached, optx.RESULTS.nonlinear_divergence
     )
-    result = optx.RESULTS.where(ok > 0.5, optx.RESULTS.successful, failure)
-    stats = {"num_steps": steps.astype(int), "max_steps": max_steps}
+    result = optx.RESULTS.where(converged & solvable, optx.RESULTS.successful, failure)
+    if throw:
+        q = result.error_if(q, result != optx.RESULTS.successful)
+    stats = {"num_steps": steps, "max_steps": max_steps}
+    q0 = _implicit(q, jac, params, options=options)
     return optx.Solution(value=q0, result=result, aux=None, stats=stats, state=None)
-
-
-def _tangent_solve(linear_fn, rhs):
-    """x with linear_fn(x) = rhs for the (10, 10) linearised equilibrium, by Householder QR of
-    its matrix; transposable (reverse mode) through `custom_linear_solve`."""
-
-    def dense(fn, b):
-        return solve_square(jax.jacfwd(fn)(b), b)
-
-    return jax.lax.custom_linear_solve(linear_fn, rhs, dense, transpose_solve=dense)
 
 
 def static_equilibrium(
