@@ -298,7 +298,7 @@ PART_RULES = (
     ("bogie_jax/contact/", "vector field"),
     ("bogie_jax/params/", "vector field"),
     ("bogie_jax/measure/", "sensor readings"),
-    ("bogie_jax/identify/_householder", "linear solve"),
+    ("bogie_jax/_householder", "linear solve"),
     ("bogie_jax/identify/_jacobian", "Jacobian rule"),
     ("bogie_jax/identify/", "optimiser loop"),
     ("bogie_jax/queued_batch", "optimiser loop"),
@@ -547,7 +547,7 @@ def markdown(label: str, payload: dict) -> str:
         "and that frame's file to a part: vector field = `bogie_jax/model` (equations of "
         "motion, kinematics, suspension, `track_inputs`), `contact`, `params`; track evaluation "
         "= `bogie_jax/track`; sensor readings = `bogie_jax/measure`; linear solve = "
-        "`identify/_householder.py` and lineax; ODE solver = diffrax and `simulate.py`; "
+        "`_householder.py` and lineax; ODE solver = diffrax and `simulate.py`; "
         "optimiser loop = optimistix and the rest of `bogie_jax/identify` (queue, batch, "
         "statistics); objective = `bogie_jax/cost`, `gradients.py`. Jacobian rule = "
         "`identify/_jacobian.py`: under `jax.linearize` (optimistix's LM) the instructions of "
