@@ -13,7 +13,6 @@ Gauss-Newton, Dogleg) is stepped this way: their `postprocess` returns the itera
 import math
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import optimistix as optx
 
@@ -46,8 +45,10 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
         return problem.residuals(theta, problem.args), None
 
     def solver_init(theta0, problem):
-        f_struct = jax.eval_shape(lambda th: fn(th, problem)[0], theta0)
-        return solver.init(fn, theta0, problem, options, f_struct, None, tags)
+        # `f_struct` is None: the Gauss-Newton family's `init` does not read it (optimistix
+        # 0.1.0: it traces `f_info` itself), and `jax.eval_shape` of the residuals would trace
+        # the whole simulation once more per call (3 calls per batch trace, ~7 s each)
+        return solver.init(fn, theta0, problem, options, None, None, tags)
 
     def status(theta, problem, state):
         terminate, result = solver.terminate(fn, theta, problem, options, state, tags)
