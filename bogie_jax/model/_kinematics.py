@@ -7,13 +7,12 @@ track irregularity under it, `w` (3,): alignment d_y [m], vertical level d_z [m]
 gamma_d [rad]. e0 is HALF the distance between the contact points (the paper uses the full one).
 """
 
-import jax
 import jax.numpy as jnp
 
 from ..params import BogieParams
 from ._constants import ModelConstants
-from ._rotations import rot_x, rot_y, rot_z
-from ._smallmath import matmul, matvec, rows_times
+from ._rotations import cardan_zyx, cardan_zyx_rates, yaw_roll
+from ._smallmath import rows_times
 
 
 E_X = jnp.array([1.0, 0.0, 0.0])
@@ -31,7 +30,7 @@ def axle_positions(params: BogieParams):
 # ---------------------------------------------------------------------------------------- frame
 def frame_rotation(angles):
     """Frame rotation matrix R = Rz(yaw) Ry(pitch) Rx(roll) for angles (roll, pitch, yaw)."""
-    return matmul(matmul(rot_z(angles[2]), rot_y(angles[1])), rot_x(angles[0]))
+    return cardan_zyx(jnp.cos(angles), jnp.sin(angles))
 
 
 def frame_points(q, body_points, params: BogieParams):
@@ -42,8 +41,7 @@ def frame_points(q, body_points, params: BogieParams):
 
 def frame_body_rates_matrix(angles):
     """E_b with omega_body = E_b (roll_dot, pitch_dot, yaw_dot) for the z-y-x Cardan sequence."""
-    rx_t, ry_t = rot_x(angles[0]).T, rot_y(angles[1]).T
-    return jnp.stack([E_X, matvec(rx_t, E_Y), matvec(rx_t, matvec(ry_t, E_Z))], axis=1)
+    return cardan_zyx_rates(jnp.cos(angles), jnp.sin(angles))
 
 
 # ------------------------------------------------------------------------ one wheelset (eq. 2-5)
@@ -85,7 +83,25 @@ def roll(y, w, params: BogieParams, const: ModelConstants):
 
 def rotation(y, psi, w, params, const):
     """Non-spinning wheelset rotation matrix Rz(yaw) Rx(roll)."""
-    return matmul(rot_z(psi), rot_x(roll(y, w, params, const)))
+    phi = roll(y, w, params, const)
+    return yaw_roll(jnp.cos(psi), jnp.sin(psi), jnp.cos(phi), jnp.sin(phi))
+
+
+def roll_rate(yd, wd, params: BogieParams, const: ModelConstants):
+    """Time derivative of `roll` [rad/s] for the lateral rate `yd` [m/s] and track rates `wd`."""
+    return wd[2] + roll_slope(params, const) * relative_lateral(yd, wd, params.contact.wheel_radius)
+
+
+def height_rate(y, psi, yd, psid, w, wd, params: BogieParams, const: ModelConstants):
+    """Time derivative of `height` (eq. 2) [m/s]."""
+    g = const.geometry
+    r0 = params.contact.wheel_radius
+    return (
+        wd[1]
+        - r0 * w[2] * wd[2]
+        + g.vertical_lateral_coefficient * relative_lateral(y, w, r0) * relative_lateral(yd, wd, r0)
+        - g.vertical_yaw_coefficient * psi * psid
+    )
 
 
 def centre(y, psi, w, x, params: BogieParams, const: ModelConstants):
@@ -94,10 +110,18 @@ def centre(y, psi, w, x, params: BogieParams, const: ModelConstants):
 
 
 def angular_velocity(y, psi, yd, psid, w, wd, params, const, spin):
-    """Angular velocity [rad/s] with the constant spin `spin` = v/r0 about the axle."""
-    phi, phi_rate = jax.jvp(lambda y_, w_: roll(y_, w_, params, const), (y, w), (yd, wd))
-    rz = rot_z(psi)
-    return psid * E_Z + phi_rate * matvec(rz, E_X) + spin * matvec(rz, matvec(rot_x(phi), E_Y))
+    """Angular velocity [rad/s] with the constant spin `spin` = v/r0 about the axle:
+    psi_dot e_z + phi_dot Rz(psi) e_x + spin Rz(psi) Rx(phi) e_y."""
+    phi = roll(y, w, params, const)
+    phi_rate = roll_rate(yd, wd, params, const)
+    c, s, c_phi = jnp.cos(psi), jnp.sin(psi), jnp.cos(phi)
+    return jnp.stack(
+        [
+            phi_rate * c - spin * s * c_phi,
+            phi_rate * s + spin * c * c_phi,
+            psid + spin * jnp.sin(phi),
+        ]
+    )
 
 
 def rolling_radii(y, w, params: BogieParams, const: ModelConstants):
@@ -117,14 +141,15 @@ def contact_normals(y, w, params: BogieParams, const: ModelConstants):
     slope = (
         params.contact.cone_slope + const.geometry.contact_angle_coefficient / e0 * y_rel * SIDES
     )
-    delta = jnp.arctan(slope)
-    local = jnp.stack([jnp.zeros(2), -SIDES * jnp.sin(delta), jnp.cos(delta)], axis=-1)
-    return rows_times(local, rot_x(w[2]))
+    cos_delta = 1.0 / jnp.sqrt(1.0 + slope**2)  # cos(arctan(slope)), sin = slope cos
+    local_y, local_z = -SIDES * slope * cos_delta, cos_delta
+    c, s = jnp.cos(w[2]), jnp.sin(w[2])  # Rx(gamma_d) (0, local_y, local_z)
+    return jnp.stack([jnp.zeros(2), c * local_y - s * local_z, s * local_y + c * local_z], axis=-1)
 
 
 def contact_offsets(y, psi, w, params: BogieParams, const: ModelConstants):
     """Contact points relative to the centre [m], R_w (0, +-e0, -r) (2 sides, 3)."""
     e0 = params.contact.contact_semi_distance
     radii = rolling_radii(y, w, params, const)
-    local = jnp.stack([jnp.zeros(2), SIDES * e0, -radii], axis=-1)
-    return rows_times(local, rotation(y, psi, w, params, const))
+    rot = rotation(y, psi, w, params, const)  # R (0, +-e0, -r) = +-e0 R e_y - r R e_z
+    return (SIDES * e0)[:, None] * rot[:, 1] - radii[:, None] * rot[:, 2]

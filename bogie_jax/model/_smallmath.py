@@ -12,11 +12,6 @@ def matvec(a, x):
     return jnp.sum(a * x[..., None, :], axis=-1)
 
 
-def matmul(a, b):
-    """a @ b for small matrices a (n, k) and b (k, m)."""
-    return jnp.sum(a[:, :, None] * b[None, :, :], axis=1)
-
-
 def rows_times(points, rotation):
     """points @ rotation.T: rotate each row of `points` (n, 3) by `rotation` (3, 3)."""
     return jnp.sum(points[:, None, :] * rotation[None, :, :], axis=-1)

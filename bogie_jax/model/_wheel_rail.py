@@ -14,34 +14,39 @@ wheelset: vertical forces and the roll moment of the axlebox forces (reference d
 Hertz with fixed curvatures gives a, b ~ N^(1/3), hence f11, f22 ~ N^(2/3) and f23 ~ N.
 """
 
-import jax
 import jax.numpy as jnp
 
 from ..contact import CreepCoefficients, linear_creep_forces, shen_hedrick_elkins
 from ..params import BogieParams, ModelOptions
 from . import _kinematics as kin
 from ._constants import ModelConstants
-from ._kinematics import E_X, SIDES
+from ._kinematics import SIDES
 from ._layout import GRAVITY
 from ._smallmath import matvec
 
 
 def contact_velocities(p, pd, w, wd, x, params: BogieParams, const: ModelConstants, speed):
-    """Wheel material velocity relative to the rail at the (left, right) contact points [m/s]."""
+    """Wheel material velocity relative to the rail at the (left, right) contact points [m/s].
+
+    `x` [m], the wheelset's fixed longitudinal position, does not enter the velocity."""
     spin = speed / params.contact.wheel_radius
-    _, centre_rate = jax.jvp(
-        lambda p_, w_: kin.centre(p_[0], p_[1], w_, x, params, const), (p, w), (pd, wd)
-    )
     omega = kin.angular_velocity(p[0], p[1], pd[0], pd[1], w, wd, params, const, spin)
     offsets = kin.contact_offsets(p[0], p[1], w, params, const)
-    return speed * E_X + centre_rate + jnp.cross(omega, offsets)
+    return _contact_velocities(p, pd, w, wd, omega, offsets, params, const, speed)
+
+
+def _contact_velocities(p, pd, w, wd, omega, offsets, params, const, speed):
+    """v e_x + centre rate (0, y_dot, z_dot) (eq. 2) + omega x offsets [m/s], (2, 3)."""
+    z_dot = kin.height_rate(p[0], p[1], pd[0], pd[1], w, wd, params, const)
+    centre = jnp.stack([speed, pd[0], z_dot])
+    return centre + jnp.cross(omega, offsets)
 
 
 def creepages(velocity, omega, normals, speed):
     """Longitudinal, lateral [-] and spin [1/m] creepages (left, right) from the contact
     velocities (2, 3), the wheelset angular velocity (3,) and the contact normals (2, 3)."""
     xi_x = velocity[:, 0] / speed
-    xi_y = jnp.sum(velocity * jnp.cross(normals, E_X), axis=-1) / speed
+    xi_y = (velocity[:, 1] * normals[:, 2] - velocity[:, 2] * normals[:, 1]) / speed  # . n x e_x
     return xi_x, xi_y, matvec(normals, omega) / speed
 
 
@@ -92,16 +97,19 @@ def contact_generalised_forces(
         Q_y = sum F_y + dz/dy sum F_z + dphi/dy (Rz e_x) . M,   Q_yaw = dz/dpsi sum F_z + M_z.
     """
     spin = speed / params.contact.wheel_radius
-    velocity = contact_velocities(p, pd, w, wd, x, params, const, speed)
     omega = kin.angular_velocity(p[0], p[1], pd[0], pd[1], w, wd, params, const, spin)
+    offsets = kin.contact_offsets(p[0], p[1], w, params, const)
+    velocity = _contact_velocities(p, pd, w, wd, omega, offsets, params, const, speed)
     normals = kin.contact_normals(p[0], w, params, const)
     xi_x, xi_y, xi_spin = creepages(velocity, omega, normals, speed)
     fx, fy = linear_creep_forces(xi_x, xi_y, xi_spin, scaled_creep_coefficients(normal_load, const))
     if options.creep_saturation:
         fx, fy = shen_hedrick_elkins(fx, fy, normal_load, params.contact.friction)
-    forces = fx[:, None] * E_X + fy[:, None] * jnp.cross(normals, E_X)
+    forces = jnp.stack(
+        [fx, fy * normals[:, 2], -fy * normals[:, 1]], axis=-1
+    )  # fx e_x + fy n x e_x
     total = jnp.sum(forces, axis=0)
-    moment = jnp.sum(jnp.cross(kin.contact_offsets(p[0], p[1], w, params, const), forces), axis=0)
+    moment = jnp.sum(jnp.cross(offsets, forces), axis=0)
     dz = kin.height_gradient(p[0], p[1], w, params, const)
     roll_axis = jnp.stack([jnp.cos(p[1]), jnp.sin(p[1]), jnp.zeros_like(p[1])])  # Rz(psi) e_x
     return jnp.stack(

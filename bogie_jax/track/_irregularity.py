@@ -134,8 +134,9 @@ def _evaluate(track: TrackIrregularity, s: Array) -> tuple[Channels, Channels, C
     i = jnp.clip(jnp.floor(x), 0, last - 1).astype(jnp.int32)
     t = x - i
     u = 1.0 - t
-    y0, y1 = track.values[i], track.values[i + 1]
-    m0, m1 = track.curvatures[i], track.curvatures[i + 1]
+    # rows i and i + 1 in one slice per array (i is in range, so no index wrapping or clamping)
+    y0, y1 = jax.lax.dynamic_slice_in_dim(track.values, i, 2)
+    m0, m1 = jax.lax.dynamic_slice_in_dim(track.curvatures, i, 2)
     w = u * y0 + t * y1 + h**2 / 6.0 * ((u**3 - u) * m0 + (t**3 - t) * m1)
     dw = (y1 - y0) / h + h / 6.0 * ((3.0 * t**2 - 1.0) * m1 - (3.0 * u**2 - 1.0) * m0)
     d2w = u * m0 + t * m1
