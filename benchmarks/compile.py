@@ -273,7 +273,7 @@ def build_part_linear_solve(scenario):
 
 
 BUILDERS = {
-    "simulate": build_simulate,
+    "simulation": build_simulate,
     "residuals": build_residuals,
     "jacfwd": build_jacfwd,
     "grad": build_grad,
@@ -305,7 +305,7 @@ PART_RULES = (
     ("bogie_jax/batch", "optimiser loop"),
     ("bogie_jax/cost/", "objective"),
     ("bogie_jax/gradients", "objective"),
-    ("bogie_jax/simulate", "ODE solver"),
+    ("bogie_jax/simulation", "ODE solver"),
     ("lineax/", "linear solve"),
     ("diffrax/", "ODE solver"),
     ("optimistix/", "optimiser loop"),
@@ -547,7 +547,7 @@ def markdown(label: str, payload: dict) -> str:
         "and that frame's file to a part: vector field = `bogie_jax/model` (equations of "
         "motion, kinematics, suspension, `track_inputs`), `contact`, `params`; track evaluation "
         "= `bogie_jax/track`; sensor readings = `bogie_jax/measure`; linear solve = "
-        "`_householder.py` and lineax; ODE solver = diffrax and `simulate.py`; "
+        "`_householder.py` and lineax; ODE solver = diffrax and `simulation.py`; "
         "optimiser loop = optimistix and the rest of `bogie_jax/identify` (queue, batch, "
         "statistics); objective = `bogie_jax/cost`, `gradients.py`. Jacobian rule = "
         "`identify/_jacobian.py`: under `jax.linearize` (optimistix's LM) the instructions of "
