@@ -157,7 +157,15 @@ def local_methods(rtol: float = 1e-10, atol: float = 1e-10) -> dict:
     """The name -> method table used at the CLI/IO boundary.
 
     The least-squares steps use `HouseholderQR` (no LAPACK call, see `_householder.py`: a
-    batched LAPACK QR can deadlock a multistart sharded over CPU devices)."""
+    batched LAPACK QR can deadlock a multistart sharded over CPU devices).
+
+    `rtol`, `atol`: optimistix's Cauchy test, which stops a least-squares fit when the accepted
+    step and every residual's change are both below `atol + rtol |value|` (element-wise, max
+    norm). Measured on the default `bogie-jax identify` scenario (8 LM starts, ODE rtol 1e-6,
+    the tolerance a traced input of one batch): 1e-10, 1e-8, 1e-6, 1e-5, 1e-4 and 1e-3 give the
+    same step counts (7-42) and bit-identical ends; the residual-change test does not pass
+    before the steps vanish (the residuals jitter at the ODE solver's error level), so a looser
+    default would save no steps there."""
     qr = HouseholderQR()
     return {
         "lm": LeastSquaresMethod(optx.LevenbergMarquardt(rtol, atol, linear_solver=qr)),
