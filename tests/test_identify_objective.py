@@ -74,6 +74,7 @@ def multistart4(clean):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_noise_free_multistart_recovers_truth(clean, multistart4):
     assert jax.device_count() == 4
     res = multistart4
@@ -191,6 +192,7 @@ def _args(tmp_path, *extra):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_cli_identify(tmp_path, capsys, clean):
     args = _args(tmp_path)
     assert _run(args) == 0
@@ -210,6 +212,7 @@ def test_cli_identify(tmp_path, capsys, clean):
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 def test_cli_interrupt_keeps_finished_starts(tmp_path, monkeypatch, capsys):
     calls = []
 
