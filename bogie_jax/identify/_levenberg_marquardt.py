@@ -1,0 +1,95 @@
+"""Levenberg-Marquardt that stops when the fit is converged in the statistical sense.
+
+optimistix's Gauss-Newton family stops on a Cauchy test: the accepted step and *every*
+residual's change below `atol + rtol |value|`. The residuals of an ODE fit jitter at the
+solver's error level (adaptive steps move with the parameters), so that test does not pass
+before the trust region has shrunk to nothing: the fits ran 33-43 steps, and a collapsed region
+(damping `1 / step_size` infinite) made the step's linear solve fail, so fits that had reached
+the best minimum ended `singular`.
+
+Here the fit also stops when the Bates-Watts **relative offset** is small: with `J = Q R` at the
+current point, residuals `r` (m of them) and `n` parameters,
+
+    RO = sqrt(|Q1^T r|^2 / n) / sqrt(|Q2^T r|^2 / (m - n))
+
+(Bates & Watts 1981, "A relative offset orthogonality convergence criterion for nonlinear least
+squares", Technometrics 23(2) 179-183; Bates & Watts 1988, *Nonlinear Regression Analysis and
+Its Applications*, 2.2.3). `|Q1^T r| = |J d|` for the Gauss-Newton step `d` still to take, and
+`|Q2^T r|^2 / (m - n)` is the noise variance `s^2` the covariance uses, so `RO sqrt(n)` is the
+length of the remaining step in the metric of the parameters' confidence region: `RO < tol`
+means the estimate would move by less than `tol sqrt(n)` joint standard errors. It is
+scale-free (no parameter or residual units enter). Without noise (`|Q2^T r|` at the ODE
+error level) it only passes at the ODE error's own optimum, so the Cauchy test stays as the
+other way to stop.
+
+`offset_tol` is 1e-2, not Bates and Watts' 1e-3: the ODE error puts a floor under the offset.
+Measured on the default `bogie-jax identify` scenario (3 parameters, 8 starts, ODE rtol 1e-6):
+1e-4 never passed (every fit as with optimistix's LM: 7-43 steps, 2 starts `singular`); 1e-3
+stopped 5 of the 8 fits after 5-14 steps and left one `singular`; 1e-2 stopped every fit that
+reached the best minimum after 4-13 steps, all `successful` (6 of 8 in that minimum, against 4),
+and the best estimate moved by at most 3e-3 of its standard error.
+"""
+
+from collections.abc import Callable
+
+import jax.numpy as jnp
+import lineax as lx
+import optimistix as optx
+
+from .._householder import triangularise
+
+
+def relative_offset(jac, residual):
+    """The Bates-Watts relative offset (module docstring) of residuals `residual` (m,) with
+    Jacobian `jac` (m, n); `inf` where no residual is left outside the tangent plane (also for
+    m <= n: no degrees of freedom estimate the noise)."""
+    r = jnp.ravel(residual)
+    m, n = jac.shape
+    if m <= n:
+        return jnp.asarray(jnp.inf, r.dtype)
+    _, qtr = triangularise(jac, r)
+    offset2 = jnp.sum(qtr**2)
+    orth2 = jnp.sum(r**2) - offset2
+    ratio = (offset2 / n) / jnp.where(orth2 > 0, orth2 / (m - n), 1.0)
+    return jnp.where(orth2 > 0, jnp.sqrt(ratio), jnp.inf)
+
+
+def _quiet(**kwargs):
+    """No progress output (a module-level function: equal methods stay equal, so a compiled
+    batch keyed on the method is found again)."""
+
+
+class LevenbergMarquardt(optx.AbstractGaussNewton):
+    """`optimistix.LevenbergMarquardt` that also stops when the relative offset at the current
+    iterate is below `offset_tol` (module docstring); otherwise the same solver (damped Newton
+    descent, classical trust region, `rtol`/`atol` Cauchy test)."""
+
+    rtol: float
+    atol: float
+    offset_tol: float
+    norm: Callable
+    descent: optx.DampedNewtonDescent
+    search: optx.ClassicalTrustRegion
+    verbose: Callable
+
+    def __init__(
+        self,
+        rtol: float,
+        atol: float,
+        offset_tol: float = 1e-2,
+        linear_solver: lx.AbstractLinearSolver = lx.QR(),
+    ):
+        self.rtol = rtol
+        self.atol = atol
+        self.offset_tol = offset_tol
+        self.norm = optx.max_norm
+        self.descent = optx.DampedNewtonDescent(linear_solver=linear_solver)
+        self.search = optx.ClassicalTrustRegion()
+        self.verbose = _quiet
+
+    def terminate(self, fn, y, args, options, state, tags):
+        cauchy, result = super().terminate(fn, y, args, options, state, tags)
+        # `state.f_info` holds the residuals and linearisation at `y` once a step was taken
+        offset = relative_offset(state.f_info.jac.as_matrix(), state.f_info.residual)
+        converged = ~state.first_step & (offset < self.offset_tol)
+        return cauchy | converged, result
