@@ -11,7 +11,9 @@ import scipy.optimize
 from bogie_jax.identify import (
     BoxTransform,
     HouseholderQR,
+    LeastSquaresMethod,
     LeastSquaresProblem,
+    fit,
     fit_multistart,
     local_methods,
 )
@@ -88,3 +90,31 @@ def test_default_lm_stops_the_same_way_queued_and_lock_step():
     optimistix_lm = local_methods(offset_tol=0.0)["lm"]
     unstopped = fit_multistart(problem, lanes=None, method=optimistix_lm, **kw)
     assert np.all(queued.num_steps < unstopped.num_steps)
+
+
+def test_a_parameter_held_on_its_bound_is_left_out_of_the_offset():
+    """The decay rate's box ends below its best value: the fit holds it on the bound. The offset
+    over the other two parameters stops the fit at their optimum given the bound (scipy's
+    bounded least_squares as the oracle), where the offset over all three, which keeps a
+    component along the rate's vanishing column, lets it run on."""
+    tr = BoxTransform([0.5, 0.05, -1.0], [5.0, 0.5, 1.0], names=("a", "b", "c"))
+    problem = LeastSquaresProblem(lambda th, args: _jittery(tr.to_physical(th), args), tr)
+    start = [1.0, 0.5 - 1e-10, 0.0]  # the rate already on its bound (u = 1 - 2e-10)
+
+    def lm(bound_tol):
+        solver = LevenbergMarquardt(1e-10, 1e-10, 1e-2, HouseholderQR(), bound_tol=bound_tol)
+        return fit(problem, start, method=LeastSquaresMethod(solver), max_steps=300, throw=False)
+
+    held, all_columns = lm(1e-6), lm(0.0)
+    assert held.success and np.asarray(held.on_bound).tolist() == [False, True, False]
+    assert int(held.num_steps) < int(all_columns.num_steps)
+
+    ref = scipy.optimize.least_squares(
+        lambda p: np.asarray(_smooth(p)), [1.0, 0.3, 0.0], bounds=(tr.lower, tr.upper),
+        xtol=1e-15, ftol=1e-15, gtol=1e-15,
+    )  # fmt: skip
+    assert ref.active_mask.tolist() == [0, 1, 0]
+    free = ref.jac[:, [0, 2]]
+    cov = (2 * ref.cost / (T.size - 2)) * np.linalg.inv(free.T @ free)
+    delta = np.asarray(held.estimates)[[0, 2]] - ref.x[[0, 2]]
+    assert np.sqrt(delta @ np.linalg.solve(cov, delta)) < 2 * 1e-2 * np.sqrt(2)

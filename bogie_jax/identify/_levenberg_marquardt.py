@@ -39,19 +39,39 @@ import optimistix as optx
 from .._householder import triangularise
 
 
-def relative_offset(jac, residual):
+def relative_offset(jac, residual, free=None):
     """The Bates-Watts relative offset (module docstring) of residuals `residual` (m,) with
-    Jacobian `jac` (m, n); `inf` where no residual is left outside the tangent plane (also for
-    m <= n: no degrees of freedom estimate the noise)."""
+    Jacobian `jac` (m, n), over the columns marked `free` (n,) (default: all); `inf` where no
+    residual is left outside the tangent plane (also for m <= n: no degrees of freedom estimate
+    the noise), 0 where no column is free."""
     r = jnp.ravel(residual)
     m, n = jac.shape
     if m <= n:
         return jnp.asarray(jnp.inf, r.dtype)
-    _, qtr = triangularise(jac, r)
-    offset2 = jnp.sum(qtr**2)
+    if free is None:
+        free = jnp.ones(n, bool)
+    # the free columns first (stable), the others zeroed: the first k reflections span them
+    order = jnp.argsort(~free, stable=True)
+    free = free[order]
+    _, qtr = triangularise(jnp.where(free, jac[:, order], 0.0), r)
+    k = jnp.sum(free)
+    offset2 = jnp.sum(jnp.where(jnp.arange(n) < k, qtr, 0.0) ** 2)
     orth2 = jnp.sum(r**2) - offset2
-    ratio = (offset2 / n) / jnp.where(orth2 > 0, orth2 / (m - n), 1.0)
-    return jnp.where(orth2 > 0, jnp.sqrt(ratio), jnp.inf)
+    ratio = (offset2 / jnp.maximum(k, 1)) / jnp.where(orth2 > 0, orth2 / (m - k), 1.0)
+    offset = jnp.where(orth2 > 0, jnp.sqrt(ratio), jnp.inf)
+    return jnp.where(k > 0, offset, 0.0)
+
+
+def free_parameters(y, args, bound_tol):
+    """Which parameters are off their bounds: with `args` a problem with a `transform` (this
+    package's `LeastSquaresProblem`), those whose value lies more than `bound_tol` box widths
+    inside both bounds; else all."""
+    transform = getattr(args, "transform", None)
+    if transform is None or not hasattr(transform, "lower"):
+        return jnp.ones(jnp.shape(y), bool)
+    lower, upper = transform.lower, transform.upper
+    u = (transform.to_physical(y) - lower) / (upper - lower)
+    return (u > bound_tol) & (u < 1.0 - bound_tol)
 
 
 def _quiet(**kwargs):
@@ -62,11 +82,18 @@ def _quiet(**kwargs):
 class LevenbergMarquardt(optx.AbstractGaussNewton):
     """`optimistix.LevenbergMarquardt` that also stops when the relative offset at the current
     iterate is below `offset_tol` (module docstring); otherwise the same solver (damped Newton
-    descent, classical trust region, `rtol`/`atol` Cauchy test)."""
+    descent, classical trust region, `rtol`/`atol` Cauchy test).
+
+    Parameters held on a bound (within `bound_tol` box widths, `free_parameters`; the default
+    is `fit`'s on-bound flag) are left out of the offset, as a constrained optimum's first-order
+    conditions leave them out: the transform's logistic flattens there, the residual keeps a
+    component along their (vanishing) columns, and the offset over all columns would never
+    fall while the fit crawls towards the bound."""
 
     rtol: float
     atol: float
     offset_tol: float
+    bound_tol: float
     norm: Callable
     descent: optx.DampedNewtonDescent
     search: optx.ClassicalTrustRegion
@@ -78,10 +105,12 @@ class LevenbergMarquardt(optx.AbstractGaussNewton):
         atol: float,
         offset_tol: float = 1e-2,
         linear_solver: lx.AbstractLinearSolver = lx.QR(),
+        bound_tol: float = 1e-6,
     ):
         self.rtol = rtol
         self.atol = atol
         self.offset_tol = offset_tol
+        self.bound_tol = bound_tol
         self.norm = optx.max_norm
         self.descent = optx.DampedNewtonDescent(linear_solver=linear_solver)
         self.search = optx.ClassicalTrustRegion()
@@ -90,6 +119,7 @@ class LevenbergMarquardt(optx.AbstractGaussNewton):
     def terminate(self, fn, y, args, options, state, tags):
         cauchy, result = super().terminate(fn, y, args, options, state, tags)
         # `state.f_info` holds the residuals and linearisation at `y` once a step was taken
-        offset = relative_offset(state.f_info.jac.as_matrix(), state.f_info.residual)
+        free = free_parameters(y, args, self.bound_tol)
+        offset = relative_offset(state.f_info.jac.as_matrix(), state.f_info.residual, free)
         converged = ~state.first_step & (offset < self.offset_tol)
         return cauchy | converged, result

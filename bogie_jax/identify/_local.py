@@ -55,11 +55,17 @@ class LeastSquaresMethod(AbstractLocalMethod):
     solver: optx.AbstractLeastSquaresSolver
 
     def solve(self, problem, theta0, max_steps):
+        # the problem itself is the solver's `args` (as in the queued fits, `_iteration`): the
+        # LM's stopping rule reads its transform (`_levenberg_marquardt.free_parameters`)
         sol = optx.least_squares(
-            problem.residuals, self.solver, theta0, problem.args, max_steps=max_steps, throw=False
+            _problem_residuals, self.solver, theta0, problem, max_steps=max_steps, throw=False
         )
         steps = jnp.asarray(sol.stats["num_steps"])
         return LocalOutput(sol.value, sol.result, steps, steps, steps)
+
+
+def _problem_residuals(theta, problem):
+    return problem.residuals(theta, problem.args)
 
 
 class MinimiserMethod(AbstractLocalMethod):
