@@ -13,11 +13,12 @@ from bogie_jax.identify import (
     HouseholderQR,
     LeastSquaresMethod,
     LeastSquaresProblem,
+    LevenbergMarquardt,
     fit,
     fit_multistart,
     local_methods,
+    relative_offset,
 )
-from bogie_jax.identify._levenberg_marquardt import LevenbergMarquardt, relative_offset
 
 
 def test_relative_offset_matches_its_definition_by_lstsq():

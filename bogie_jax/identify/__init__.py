@@ -25,6 +25,11 @@ from ._chunked import (
 )
 from ._iteration import queue_lanes as queue_lanes, supports_queue as supports_queue
 from ._jacobian import JacobianResiduals as JacobianResiduals
+from ._levenberg_marquardt import (
+    LevenbergMarquardt as LevenbergMarquardt,
+    free_parameters as free_parameters,
+    relative_offset as relative_offset,
+)
 from ._local import (
     LOCAL_METHODS as LOCAL_METHODS,
     AbstractLocalMethod as AbstractLocalMethod,
