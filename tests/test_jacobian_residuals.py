@@ -10,9 +10,16 @@ d theta, with d p / d theta of the element-wise transform, which is not under te
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import jax.random as jr
 import numpy as np
 
-from bogie_jax.identify import BoxTransform, JacobianResiduals, as_problem
+from bogie_jax.identify import (
+    BoxTransform,
+    JacobianResiduals,
+    LeastSquaresProblem,
+    as_problem,
+    fit_multistart,
+)
 
 
 T = jnp.linspace(0.0, 2.0, 9)
@@ -25,6 +32,10 @@ class _Decay(eqx.Module):
     """Objective-like: `residuals(theta, args)` and a `selection` (as `cost.Objective`)."""
 
     selection: BoxTransform
+
+    @property
+    def n_residuals(self) -> int:
+        return T.size
 
     def residuals(self, theta, args=None):
         TRACES.append(1)
@@ -59,3 +70,19 @@ def test_custom_jvp_gives_the_analytic_jacobian_in_every_mode():
     # as_problem wraps a `selection` objective in JacobianResiduals
     problem = as_problem(objective)
     assert isinstance(problem.residuals, JacobianResiduals)
+
+
+def test_queued_fits_trace_the_residuals_once():
+    """A queued multistart sizes each fit's solver state from `JacobianResiduals.shape_twin`, so
+    its batch traces the residuals once (the LM step), not four times (the state's `init` for the
+    first starts, for each refill and for the step's static part), and takes the steps of the
+    lock-step batch (optimistix's own `init` on the real residuals) to the same ends."""
+    problem = LeastSquaresProblem(JacobianResiduals(_Decay(TR)), TR)
+    kw = dict(key=jr.PRNGKey(0), n_starts=6, max_steps=50)
+    TRACES.clear()
+    queued = fit_multistart(problem, lanes=2, **kw)
+    assert len(TRACES) == 1
+    lock_step = fit_multistart(problem, lanes=None, **kw)
+    assert np.all(queued.status == "successful")
+    np.testing.assert_array_equal(queued.num_steps, lock_step.num_steps)
+    np.testing.assert_array_equal(queued.ends, lock_step.ends)
