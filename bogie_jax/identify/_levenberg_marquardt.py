@@ -27,7 +27,9 @@ Measured on the default `bogie-jax identify` scenario (3 parameters, 8 starts, O
 1e-4 never passed (every fit as with optimistix's LM: 7-43 steps, 2 starts `singular`); 1e-3
 stopped 5 of the 8 fits after 5-14 steps and left one `singular`; 1e-2 stopped every fit that
 reached the best minimum after 4-13 steps, all `successful` (6 of 8 in that minimum, against 4),
-and the best estimate moved by at most 3e-3 of its standard error.
+and the best estimate moved by at most 3e-3 of its standard error. With the parameters held on
+a bound left out (`LevenbergMarquardt`), the two starts that end on a bound stop after 4 and 7
+steps instead of 7 and 41: 55 steps for the 8 starts, against 272 with optimistix's test alone.
 """
 
 from collections.abc import Callable
