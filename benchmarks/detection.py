@@ -50,7 +50,6 @@ Run (from the repository root):
     python benchmarks/detection.py --imperfection speed        # 30 cases, one imperfection
     python benchmarks/detection.py --shard 0/2 --workers 16    # half the cases (other: 1/2)
     python benchmarks/detection.py --report                    # tables from the records only
-    python benchmarks/detection.py --report --rejudge          # ... with the current verdict rule
 Writes results/<out>.json (records + aggregates + environment) and results/<out>.md; <out>
 is `detection` for the default imperfections, else `detection_<imperfections>`.
 """
@@ -85,11 +84,7 @@ import numpy as np
 from bogie_jax.measure import default_sensor_layout, synthetic_measurement
 from bogie_jax.monitor import (
     DEFAULT_CANDIDATES,
-    DEFAULT_FAILED_FRACTION,
     DEFECT_SCENARIOS,
-    ToleranceBand,
-    decision_z,
-    judge,
     monitor,
     nonlinear_options,
     recorded_track,
@@ -399,49 +394,6 @@ def judged(rec: dict):
         yield v, v["estimate"] / nom - 1, true / nom - 1, bool(lo <= true <= hi)
 
 
-def rejudge(records: dict[int, dict], cfg: dict) -> tuple[dict[int, dict], int, int]:
-    """The records with every verdict judged again by the library's current rule
-    (`bogie_jax.monitor.judge`) from its stored estimate and standard error: z from the false-
-    alarm rate and the number of elements judged together, the default band (`monitor`'s
-    default arguments, as every case uses) rebuilt from the stored healthy band. Returns the
-    records, the number of verdicts that changed and the number judged.
-
-    A check of the reconstruction: a stored verdict may differ only where the decision interval
-    is wider than the band, the stored verdict is `not identifiable` and the new one an alarm
-    (the rule before 2026-11-26 called every such interval not identifiable, even one wholly
-    outside the band); any other difference raises."""
-    out, changed, total = {}, 0, 0
-    for key, rec in records.items():
-        if "error" in rec:
-            out[key] = rec
-            continue
-        fit_ok = rec["fit"]["status"] != "failed"
-        coords = [v for v in rec["verdicts"] if v["identifiable"] in ("alone", "as a group")]
-        z = decision_z(cfg["false_alarm_rate"], len(coords)) if coords else None
-        verdicts = []
-        for v in rec["verdicts"]:
-            if v["identifiable"] not in ("alone", "as a group"):
-                verdicts.append(v)
-                continue
-            lo, hi = v["healthy_band"]
-            nominal = 0.5 * (lo + hi)
-            band = ToleranceBand((lo, hi), failed_below=DEFAULT_FAILED_FRACTION * nominal)
-            err = np.inf if v["std_error"] is None else v["std_error"]
-            new = judge(v["name"], v["estimate"], err, band, z=z, identifiable=fit_ok).verdict
-            wide = 2 * z * err > hi - lo
-            if new != v["verdict"] and not (
-                wide and v["verdict"] == "not identifiable" and new in ALARMS
-            ):
-                raise ValueError(
-                    f"case {key}, {v['name']}: stored {v['verdict']!r}, judged again {new!r}"
-                )
-            changed += new != v["verdict"]
-            total += 1
-            verdicts.append({**v, "verdict": new})
-        out[key] = {**rec, "verdicts": verdicts}
-    return out, changed, total
-
-
 def case_outcome(rec: dict) -> dict:
     alarms = [v for v in rec["verdicts"] if v["verdict"] in ALARMS]
     changed = set(rec["changed"])
@@ -632,11 +584,6 @@ def main(argv=None):
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
     p.add_argument("--report", action="store_true", help="only aggregate the records")
-    p.add_argument(
-        "--rejudge",
-        action="store_true",
-        help="judge the stored estimates again with the current verdict rule (see `rejudge`)",
-    )
     args = p.parse_args(argv)
     args.imperfections = parse_imperfections(args.imperfection)
     args.speed_range = tuple(float(x) for x in args.speed_range.split(","))
@@ -667,24 +614,9 @@ def main(argv=None):
     records = {k: r for k, r in records.items() if k < args.cases}
     if not records:
         raise SystemExit(f"no records of {args.out} yet")
-    note, extra = "", {}
-    if args.rejudge:
-        records, changed, total = rejudge(records, cfg)
-        note = (
-            f"\nVerdicts judged again from the stored estimates and standard errors with the "
-            f"current rule (`--rejudge`; the fits are the records' own): {changed} of {total} "
-            "changed, from `not identifiable` (a decision interval wider than the band) to an "
-            "alarm (the interval wholly outside the band).\n"
-        )
-        previous = RESULTS / f"{args.out}.json"
-        if previous.exists():  # where and with what the records were made
-            old = json.loads(previous.read_text())
-            extra["records_environment"] = old.get("records_environment", old["environment"])
     summary, md = aggregate(records, cfg)
-    md += note
-    summary["rejudged"] = bool(args.rejudge)
     ordered = [records[k] for k in sorted(records)]
-    write_outputs(args.out, ordered, md, extra={"config": cfg, "summary": summary, **extra})
+    write_outputs(args.out, ordered, md, extra={"config": cfg, "summary": summary})
 
 
 if __name__ == "__main__":

@@ -9,15 +9,12 @@ Decision rule (documented in the README, "Verdict rules"):
   band, so it is called degraded or failed only if I misses the truth: probability at most
   alpha / m per element and at most alpha for the bogie, whatever the correlation of the
   estimates (given correct standard errors).
-- `not identifiable` (first): the element is flagged unidentifiable by the Fisher information
-  of the actual runs, or its fit failed.
 - `failed`: I lies entirely beyond the failure limit (below `failed_below`, or above
   `failed_above` where a band has one).
-- `degraded`: I lies entirely outside the healthy band (and the element is not failed). These
-  two hold however wide I is: a healthy element's I lies outside its band only if I misses
-  the truth, which is what the level bounds.
-- `not identifiable`: I overlaps the band but is wider than it: the data can neither show the
-  element out of its band nor confirm it inside.
+- `degraded`: I lies entirely outside the healthy band (and the element is not failed).
+- `not identifiable`: the sensors cannot decide: the element is flagged unidentifiable by the
+  Fisher information of the actual runs, or I is wider than the healthy band (then no value of
+  the estimate could show the element healthy or not).
 - `healthy`: otherwise: the data give no evidence, at level alpha, that the element left its band.
 
 The reported 95 % interval is estimate +- 1.96 standard errors, independent of `alpha`.
@@ -146,15 +143,15 @@ def judge(
     evidence = {"decision_interval": [lo, hi], "z": z}
     if not (identifiable and math.isfinite(std_error) and std_error >= 0):
         verdict, reason = "not identifiable", "the sensors do not determine this element"
+    elif hi - lo > h_hi - h_lo:
+        verdict = "not identifiable"
+        reason = "the decision interval is wider than the healthy band"
     elif band.failed_below is not None and hi < band.failed_below:
         verdict, reason = "failed", f"the decision interval lies below {band.failed_below:.4g}"
     elif band.failed_above is not None and lo > band.failed_above:
         verdict, reason = "failed", f"the decision interval lies above {band.failed_above:.4g}"
     elif hi < h_lo or lo > h_hi:
         verdict, reason = "degraded", "the decision interval lies outside the healthy band"
-    elif hi - lo > h_hi - h_lo:
-        verdict = "not identifiable"
-        reason = "the decision interval overlaps the healthy band and is wider than it"
     else:
         verdict, reason = "healthy", "the decision interval overlaps the healthy band"
     evidence["reason"] = reason
