@@ -1,6 +1,7 @@
 """The LM's relative-offset stopping rule (`identify._levenberg_marquardt`) against numpy's lstsq
 and scipy's least_squares, on a curve fit whose residuals jitter as an ODE fit's do."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jax.random as jr
@@ -16,6 +17,7 @@ from bogie_jax.identify import (
     LevenbergMarquardt,
     fit,
     fit_multistart,
+    free_parameters,
     local_methods,
     relative_offset,
 )
@@ -119,3 +121,22 @@ def test_a_parameter_held_on_its_bound_is_left_out_of_the_offset():
     cov = (2 * ref.cost / (T.size - 2)) * np.linalg.inv(free.T @ free)
     delta = np.asarray(held.estimates)[[0, 2]] - ref.x[[0, 2]]
     assert np.sqrt(delta @ np.linalg.solve(cov, delta)) < 2 * 1e-2 * np.sqrt(2)
+
+
+def test_only_boxed_parameters_can_be_held_on_a_bound():
+    """A log-scale parameter (bounds 0 and inf, as `select_parameters` gives) is always free;
+    a boxed one is held within `bound_tol` box widths of either bound."""
+
+    class _Transform(eqx.Module):
+        lower: jax.Array
+        upper: jax.Array
+
+        def to_physical(self, theta):
+            return theta  # physical = theta, enough for the test
+
+    transform = _Transform(jnp.array([0.0, 0.0, 0.0, 1.0]), jnp.array([jnp.inf, 1.0, 1.0, 3.0]))
+    problem = LeastSquaresProblem(lambda th, args: th, transform)
+    y = jnp.array([1e-9, 1e-9, 0.5, 3.0 - 1e-7])
+    free = free_parameters(y, problem, 1e-6)
+    assert np.asarray(free).tolist() == [True, False, True, False]
+    assert np.asarray(free_parameters(y, None, 1e-6)).all()

@@ -67,13 +67,16 @@ def relative_offset(jac, residual, free=None):
 def free_parameters(y, args, bound_tol):
     """Which parameters are off their bounds: with `args` a problem with a `transform` (this
     package's `LeastSquaresProblem`), those whose value lies more than `bound_tol` box widths
-    inside both bounds; else all."""
+    inside both bounds, and those without a finite box (a log-scale parameter: bounds 0 and
+    inf); without a transform, all."""
     transform = getattr(args, "transform", None)
     if transform is None or not hasattr(transform, "lower"):
         return jnp.ones(jnp.shape(y), bool)
     lower, upper = transform.lower, transform.upper
-    u = (transform.to_physical(y) - lower) / (upper - lower)
-    return (u > bound_tol) & (u < 1.0 - bound_tol)
+    boxed = jnp.isfinite(lower) & jnp.isfinite(upper)
+    width = jnp.where(boxed, upper - lower, 1.0)
+    u = (transform.to_physical(y) - jnp.where(boxed, lower, 0.0)) / width
+    return ~boxed | ((u > bound_tol) & (u < 1.0 - bound_tol))
 
 
 def _quiet(**kwargs):
