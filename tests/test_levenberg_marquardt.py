@@ -4,7 +4,6 @@ and scipy's least_squares, on a curve fit whose residuals jitter as an ODE fit's
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import jax.random as jr
 import numpy as np
 import optimistix as optx
 import scipy.optimize
@@ -16,9 +15,7 @@ from bogie_jax.identify import (
     LeastSquaresProblem,
     LevenbergMarquardt,
     fit,
-    fit_multistart,
     free_parameters,
-    local_methods,
     relative_offset,
 )
 
@@ -76,23 +73,6 @@ def test_lm_stops_within_a_small_fraction_of_a_standard_error():
     # the rule's promise: within offset_tol sqrt(n) joint standard errors (Mahalanobis length),
     # up to the change of the linearisation over that distance
     assert np.sqrt(delta @ np.linalg.solve(cov, delta)) < 2 * 1e-2 * np.sqrt(3)
-
-
-def test_default_lm_stops_the_same_way_queued_and_lock_step():
-    """The default "lm" of a multistart carries the stop: the queue (`_iteration`) and the
-    lock-step batch (`optimistix.least_squares`) take the same steps to the same ends, every
-    start stopping on the relative offset, before optimistix's LM would (28-33 steps)."""
-    tr = BoxTransform([0.5, 0.1, -1.0], [5.0, 2.0, 1.0], names=("a", "b", "c"))
-    problem = LeastSquaresProblem(lambda th, args: _jittery(tr.to_physical(th), args), tr)
-    kw = dict(key=jr.PRNGKey(0), n_starts=6, max_steps=200)
-    queued = fit_multistart(problem, lanes=2, **kw)
-    lock_step = fit_multistart(problem, lanes=None, **kw)
-    assert np.all(queued.status == "successful")
-    np.testing.assert_array_equal(queued.num_steps, lock_step.num_steps)
-    np.testing.assert_allclose(queued.ends, lock_step.ends, rtol=1e-12, atol=1e-14)
-    optimistix_lm = local_methods(offset_tol=0.0)["lm"]
-    unstopped = fit_multistart(problem, lanes=None, method=optimistix_lm, **kw)
-    assert np.all(queued.num_steps < unstopped.num_steps)
 
 
 def test_a_parameter_held_on_its_bound_is_left_out_of_the_offset():
