@@ -30,18 +30,24 @@ TRACES = []  # one entry per trace of `_Decay.residuals`
 
 
 class _Decay(eqx.Module):
-    """Objective-like: `residuals(theta, args)` and a `selection` (as `cost.Objective`)."""
+    """Objective-like: `residuals(theta, args)` and a `selection` (as `cost.Objective`) of the
+    decay `a exp(-b t)` against data `y`, plus `rough` times a term that changes with the
+    parameters but is not differentiated (as an ODE solver's error)."""
 
     selection: BoxTransform
+    t: jax.Array
+    y: jax.Array
+    rough: float = eqx.field(static=True, default=0.0)
 
     @property
     def n_residuals(self) -> int:
-        return T.size
+        return self.t.size
 
     def residuals(self, theta, args=None):
         TRACES.append(1)
         a, b = self.selection.to_physical(theta)
-        return a * jnp.exp(-b * T) - Y
+        jitter = jax.lax.stop_gradient(jnp.sin(1e7 * (a + 2.0 * b) + 17.0 * self.t))
+        return a * jnp.exp(-b * self.t) - self.y + self.rough * jitter
 
 
 def _analytic_jacobian(theta):
@@ -53,7 +59,7 @@ def _analytic_jacobian(theta):
 
 
 def test_custom_jvp_gives_the_analytic_jacobian_in_every_mode():
-    objective = _Decay(TR)
+    objective = _Decay(TR, T, Y)
     residuals = JacobianResiduals(objective)
     theta = jnp.asarray([0.3, -0.2])
     expected = _analytic_jacobian(theta)
@@ -77,30 +83,14 @@ T_FIT = jnp.linspace(0.0, 2.0, 200)
 Y_NOISY = 2.0 * jnp.exp(-0.7 * T_FIT) + 0.01 * jr.normal(jr.PRNGKey(5), T_FIT.shape)
 
 
-class _NoisyDecay(eqx.Module):
-    """`_Decay` on 200 noisy samples, plus a rough term of 1e-4 of the noise that is not
-    differentiated (as an ODE solver's error): the LM stops on its relative offset."""
-
-    selection: BoxTransform
-
-    @property
-    def n_residuals(self) -> int:
-        return T_FIT.size
-
-    def residuals(self, theta, args=None):
-        TRACES.append(1)
-        a, b = self.selection.to_physical(theta)
-        rough = jax.lax.stop_gradient(1e-6 * jnp.sin(1e7 * (a + 2.0 * b) + 17.0 * T_FIT))
-        return a * jnp.exp(-b * T_FIT) - Y_NOISY + rough
-
-
 def test_queued_fits_trace_the_residuals_once():
     """A queued multistart sizes each fit's solver state from `JacobianResiduals.shape_twin`, so
     its batch traces the residuals once (the LM step), not four times (the state's `init` for the
     first starts, for each refill and for the step's static part), and takes the steps of the
     lock-step batch (optimistix's own `init` on the real residuals) to the same ends, where the
     default LM's relative offset has fallen below its 1e-2."""
-    objective = _NoisyDecay(TR)
+    # 200 noisy samples and a rough term of 1e-4 of the noise: the LM stops on its offset
+    objective = _Decay(TR, T_FIT, Y_NOISY, rough=1e-6)
     problem = LeastSquaresProblem(JacobianResiduals(objective), TR)
     kw = dict(key=jr.PRNGKey(0), n_starts=6, max_steps=50)
     TRACES.clear()

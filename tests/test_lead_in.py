@@ -124,6 +124,7 @@ def test_fit_with_lead_in_identifies_the_truth(fits):
     print(f"{fits['speed']:g} m/s with lead-in: {result.estimates} relative errors {rel}")
     np.testing.assert_array_less(rel, 1e-5)
     assert float(result.cost) < 1e-6  # J(truth) = 0 (noise-free)
+    assert not np.any(result.on_bound)  # log-scale parameters have no box to sit on
 
 
 def test_fit_without_lead_in_is_biased(fits):

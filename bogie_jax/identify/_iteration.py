@@ -20,7 +20,7 @@ from .._householder import HouseholderQR
 from ..queued_batch import IterativeMember, queued_runner
 from ._jacobian import JacobianResiduals
 from ._local import LeastSquaresMethod, LocalOutput
-from ._problem import is_successful
+from ._problem import is_successful, problem_residuals
 
 
 def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int):
@@ -43,7 +43,7 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
     options, tags = {}, frozenset()
 
     def fn(theta, problem):
-        return problem.residuals(theta, problem.args), None
+        return problem_residuals(theta, problem), None
 
     def solver_init(theta0, problem):
         # `f_struct` is None: the Gauss-Newton family's `init` does not read it (optimistix

@@ -39,6 +39,7 @@ import lineax as lx
 import optimistix as optx
 
 from .._householder import triangularise
+from ._problem import on_bound
 
 
 def relative_offset(jac, residual, free=None):
@@ -65,18 +66,12 @@ def relative_offset(jac, residual, free=None):
 
 
 def free_parameters(y, args, bound_tol):
-    """Which parameters are off their bounds: with `args` a problem with a `transform` (this
-    package's `LeastSquaresProblem`), those whose value lies more than `bound_tol` box widths
-    inside both bounds, and those without a finite box (a log-scale parameter: bounds 0 and
-    inf); without a transform, all."""
+    """Which parameters are not held on a bound (`_problem.on_bound` at `y`), with `args` a
+    problem with a `transform` (this package's `LeastSquaresProblem`); without one, all."""
     transform = getattr(args, "transform", None)
     if transform is None or not hasattr(transform, "lower"):
         return jnp.ones(jnp.shape(y), bool)
-    lower, upper = transform.lower, transform.upper
-    boxed = jnp.isfinite(lower) & jnp.isfinite(upper)
-    width = jnp.where(boxed, upper - lower, 1.0)
-    u = (transform.to_physical(y) - jnp.where(boxed, lower, 0.0)) / width
-    return ~boxed | ((u > bound_tol) & (u < 1.0 - bound_tol))
+    return ~on_bound(transform, transform.to_physical(y), bound_tol)
 
 
 def _quiet(**kwargs):

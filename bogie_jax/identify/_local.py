@@ -19,7 +19,15 @@ import optimistix as optx
 from .._householder import HouseholderQR
 from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
 from ._levenberg_marquardt import LevenbergMarquardt
-from ._problem import as_problem, is_successful, param_names, start_theta, status_name
+from ._problem import (
+    as_problem,
+    is_successful,
+    on_bound,
+    param_names,
+    problem_residuals,
+    start_theta,
+    status_name,
+)
 
 
 class LocalOutput(eqx.Module):
@@ -58,14 +66,10 @@ class LeastSquaresMethod(AbstractLocalMethod):
         # the problem itself is the solver's `args` (as in the queued fits, `_iteration`): the
         # LM's stopping rule reads its transform (`_levenberg_marquardt.free_parameters`)
         sol = optx.least_squares(
-            _problem_residuals, self.solver, theta0, problem, max_steps=max_steps, throw=False
+            problem_residuals, self.solver, theta0, problem, max_steps=max_steps, throw=False
         )
         steps = jnp.asarray(sol.stats["num_steps"])
         return LocalOutput(sol.value, sol.result, steps, steps, steps)
-
-
-def _problem_residuals(theta, problem):
-    return problem.residuals(theta, problem.args)
 
 
 class MinimiserMethod(AbstractLocalMethod):
@@ -293,8 +297,6 @@ def fit_statistics(transform, theta, cost, jac, bound_tol):
     uncertainty = covariance_from_jacobian(jac, sigma2=s2, scale=d)
     se = uncertainty.std_errors
     half = t_quantile(0.975, max(dof, 1)) * se
-    lower, upper = transform.lower, transform.upper
-    u = (estimates - lower) / (upper - lower)
     return dict(
         estimates=estimates,
         cost=jnp.asarray(cost),
@@ -305,7 +307,7 @@ def fit_statistics(transform, theta, cost, jac, bound_tol):
         uncertainty=uncertainty,
         noise_variance=s2,
         dof=dof,
-        on_bound=(u < bound_tol) | (u > 1.0 - bound_tol),
+        on_bound=on_bound(transform, estimates, bound_tol),
     )
 
 

@@ -69,8 +69,23 @@ class LeastSquaresProblem(eqx.Module):
 
     def cost(self, theta):
         """Half the sum of squared residuals, `J = 0.5 r^T r`."""
-        r = jnp.ravel(self.residuals(theta, self.args))
+        r = jnp.ravel(problem_residuals(theta, self))
         return 0.5 * jnp.sum(r**2)
+
+
+def problem_residuals(theta, problem: LeastSquaresProblem):
+    """`problem`'s residuals at `theta`: the solvers' `fn(y, args)` with the problem itself as
+    `args` (so a solver's stopping rule can read the transform)."""
+    return problem.residuals(theta, problem.args)
+
+
+def on_bound(transform, physical, bound_tol):
+    """Whether each parameter lies within `bound_tol` box widths of a bound of `transform`; a
+    parameter without a finite box (log scale: bounds 0 and inf) never does."""
+    lower, upper = transform.lower, transform.upper
+    boxed = jnp.isfinite(lower) & jnp.isfinite(upper)
+    u = (physical - jnp.where(boxed, lower, 0.0)) / jnp.where(boxed, upper - lower, 1.0)
+    return boxed & ((u < bound_tol) | (u > 1.0 - bound_tol))
 
 
 def as_problem(problem) -> LeastSquaresProblem:
