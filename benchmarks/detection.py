@@ -252,6 +252,7 @@ def run_case(cfg: dict, index: int) -> dict:
             "healthy_band": list(v.band.healthy),
             "members": list(v.evidence.get("members") or [v.name]),
             "identifiable": v.evidence.get("identifiable", ""),
+            "tests": v.evidence.get("tests", []),
         }
         for v in result.verdicts
     ]

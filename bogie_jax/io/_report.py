@@ -9,7 +9,8 @@ reports of a monitoring run and of a trend over dated runs.
   identifiable: `name`, `verdict` (`healthy`, `degraded`, `failed`, `not identifiable`),
   `estimate` and `std_error` [unit], `ci95` `[lo, hi]` [unit] (`null` when the data do not
   determine the element), `tolerance_band` (`healthy` `[lo, hi]`, `failed_below`,
-  `failed_above`, `unit`), `unit`, `evidence` (decision interval, its z, the reason, runs used);
+  `failed_above`, `unit`), `unit`, `evidence` (decision interval, its z, the tests at the
+  band's limits with their Wald and profile statistics, the reason, runs used);
 - `elements` (identifiability of every candidate), `fit`, `runs`, `false_alarm_rate`,
   `timings` [s]: as `bogie_jax.monitor.MonitorResult.to_dict`; further keys a caller adds
   (the demo adds `truth`: the hidden true values).
@@ -183,12 +184,14 @@ def _rules(record) -> list[str]:
     z = judged[0]["evidence"].get("z") if judged and "evidence" in judged[0] else None
     fit = record.get("fit") or {}
     return [
-        f"- Decision interval: estimate +- z standard errors, z = {_g(z, 3)} "
-        f"(false-alarm rate {_g(alpha, 3)} for the whole bogie, Bonferroni over the "
-        f"{len(judged)} judged elements). `failed`: the interval lies beyond the failure "
-        "limit; `degraded`: outside the healthy band; `not identifiable`: the sensors do not "
-        "determine the element (Fisher information of these runs) or the interval is wider "
-        "than the band; else `healthy`.",
+        f"- Decision level: z = {_g(z, 3)} (false-alarm rate {_g(alpha, 3)} for the whole "
+        f"bogie, Bonferroni over the {len(judged)} judged elements). An element estimated "
+        "outside its band is tested at the band's edge (and the failure limit) by the profile "
+        "likelihood ratio (the fit repeated with the element held there): `failed` beyond the "
+        "failure limit, `degraded` outside the healthy band; `not identifiable`: the sensors do "
+        "not determine the element (Fisher information of these runs) or, no test rejecting, "
+        "the decision interval estimate +- z standard errors is wider than the band; else "
+        "`healthy`.",
         "- Identifiable elements are chosen from the Fisher information of these runs at the "
         "nominal bogie; elements the sensors cannot separate are judged as their group and held "
         "at nominal otherwise.",

@@ -34,12 +34,15 @@ Steps (each documented where it is done):
    variance; `"gauss-newton"`: `bogie_jax.cost.covariance_from_jacobian`) and a verdict per
    coordinate by `judge` (`_verdict.py`), the decision z set by `false_alarm_rate` over the
    judged coordinates (Bonferroni); the judged block of the covariance of all fitted
-   coordinates (nuisance included), so the intervals carry the nuisance's uncertainty.
+   coordinates (nuisance included), so the intervals carry the nuisance's uncertainty; an
+   element estimated outside its band is tested there by the profile likelihood ratio
+   (`_profile.py`: the fit repeated with the element held at the band's edge).
 
 Steps 3, 6 and 7 are numpy on the residuals and Jacobian the compiled program returns: nothing
 more is compiled.
 """
 
+import math
 import time
 
 import equinox as eqx
@@ -67,6 +70,7 @@ from ._elements import (
 )
 from ._host_fit import levenberg_marquardt
 from ._nuisance import DEFAULT_NUISANCE, NuisanceLayout, check_nuisance
+from ._profile import profile_point
 from ._result import FitSummary, MonitorResult, RunStatus
 from ._robust import RunChannels, channel_variances, channel_weights
 from ._verdict import check_false_alarm_rate, decision_z, judge
@@ -319,15 +323,25 @@ def monitor(
                 )
     timings["fit_s"] = time.perf_counter() - t0
 
-    # 7. covariance and verdicts
+    # 7. covariance and verdicts (profile tests where an element may lie outside its band)
     used = layout()
     layout_x = nuis()
     x_fit = layout_x.matrix(a) @ fit.phi if fit is not None else np.zeros(layout_x.n_x)
+    t0 = time.perf_counter()
+
+    def profile_at(index, phi_limit, sigma2, variance_ratio):
+        say(f"profile test: {coords[index].name} held at {np.exp(phi_limit):.3g} x nominal")
+        return profile_point(
+            evaluate_phi, fit, index, phi_limit, sigma2=sigma2, variance_ratio=variance_ratio,
+            max_steps=max_steps,
+        )  # fmt: skip
+
     verdicts, summary, se_extra = _verdicts(
         coords, statuses, fit, fits, bands, used, n_bias, noise, covariance, bandwidth,
         false_alarm_rate, active, n_runs, s2_channels, remove_bias, reweights,
-        layout_x, x_fit, params, extra_names,
+        layout_x, x_fit, params, extra_names, profile_at,
     )  # fmt: skip
+    timings["verdicts_s"] = time.perf_counter() - t0
     offsets, factors = layout_x.offsets(x_fit), np.exp(layout_x.log_speed_factors(x_fit))
     fitted = fit is not None and fit.status != "failed" and run_corrections
     se_runs = np.full((2, n_runs), np.nan)
@@ -386,9 +400,11 @@ def _covariance(jac, r, layout, n_nuisance, sigma2, kind, bandwidth, values):
 def _verdicts(
     coords, statuses, fit, fits, bands, layout, n_bias, noise, kind, bandwidth, alpha, active,
     n_runs, s2_channels, remove_bias, reweights, layout_x, x_fit, params, extra_names,
+    profile_at,
 ):  # fmt: skip
     """Verdicts, the `FitSummary` and the standard errors of the fitted nuisance coordinates
-    (parameters' values, offsets [m], speed factors)."""
+    (parameters' values, offsets [m], speed factors); `profile_at(index, phi_limit, sigma2,
+    variance_ratio) -> ProfilePoint`: the profile test of a fitted coordinate."""
     used = f"{int(active.sum())} of {n_runs} runs"
     se_extra = np.zeros(0)
     verdicts = []
@@ -420,8 +436,16 @@ def _verdicts(
             for name, value, err, p0 in zip(extra_names, extra_values, se_extra, nominal_extra)
         }  # fmt: skip
         z = decision_z(alpha, len(coords))
-        for c, value, err, err_gn in zip(coords, values, se, se_gn):
-            v = judge(c.name, value, err, c.band, z=z, identifiable=fit.status != "failed")
+        for j, (c, value, err, err_gn) in enumerate(zip(coords, values, se, se_gn)):
+            ratio = float(err / err_gn) ** 2 if err_gn > 0 else 1.0
+
+            def profile(limit, j=j, c=c, ratio=ratio):
+                return profile_at(j, math.log(limit / c.nominal), sigma2, ratio)
+
+            v = judge(
+                c.name, value, err, c.band, z=z, identifiable=fit.status != "failed",
+                profile=profile,
+            )  # fmt: skip
             v.evidence.update(
                 runs_used=used,
                 identifiable=("alone" if len(c.members) == 1 else "as a group"),

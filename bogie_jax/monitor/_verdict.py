@@ -2,19 +2,28 @@
 
 Decision rule (documented in the README, "Verdict rules"):
 
-- Every element of one bogie is judged on the interval
-      I = estimate +- z * standard_error,   z = z_{1 - alpha / (2 m)},
+- Every element of one bogie is tested at the decision level z = z_{1 - alpha / (2 m)},
   where `alpha` is the bogie's false-alarm rate (one argument, default 5 %) and m the number of
   elements judged together (Bonferroni). A healthy element's true value lies inside its healthy
-  band, so it is called degraded or failed only if I misses the truth: probability at most
-  alpha / m per element and at most alpha for the bogie, whatever the correlation of the
-  estimates (given correct standard errors).
-- `failed`: I lies entirely beyond the failure limit (below `failed_below`, or above
+  band, so it is called degraded or failed only if a test at that level rejects a true
+  hypothesis: probability at most alpha / m per element and at most alpha for the bogie,
+  whatever the correlation of the estimates (given correct standard errors).
+- The test that an element lies beyond a limit L (a band edge or a failure limit) on the side
+  of its estimate: with a `profile` (`monitor` gives one: `_profile.py`), the signed root of
+  the profile likelihood-ratio statistic at L exceeds z; it is computed where the Wald
+  statistic at L, in p or in ln p, reaches z / 2 (below that, neither Wald test is near
+  rejecting and the profile is not fitted). The nearer limit is tested first: an element
+  beyond its failure limit is beyond its band's edge as well (the profile likelihood falls
+  monotonically away from the estimate). Without a profile (or where its fit failed or did
+  not converge: its statistic is then only an upper bound), the Wald test: the decision
+  interval I = estimate +- z * standard_error lies beyond L, and I is not wider than the
+  healthy band (a linearisation that spans more than the band is not trusted to reject).
+- `failed`: the element lies beyond the failure limit (below `failed_below`, or above
   `failed_above` where a band has one).
-- `degraded`: I lies entirely outside the healthy band (and the element is not failed).
+- `degraded`: it lies outside the healthy band (and has not failed).
 - `not identifiable`: the sensors cannot decide: the element is flagged unidentifiable by the
-  Fisher information of the actual runs, or I is wider than the healthy band (then no value of
-  the estimate could show the element healthy or not).
+  Fisher information of the actual runs, or (no test rejecting) I is wider than the healthy
+  band (then no value of the estimate could show the element healthy).
 - `healthy`: otherwise: the data give no evidence, at level alpha, that the element left its band.
 
 The reported 95 % interval is estimate +- 1.96 standard errors, independent of `alpha`.
@@ -127,6 +136,26 @@ def decision_z(false_alarm_rate: float, n_elements: int) -> float:
     return NormalDist().inv_cdf(1 - alpha / (2 * n_elements))
 
 
+def _beyond(estimate, std_error, limit, z, wide, profile, evidence) -> bool:
+    """Whether the data put the element beyond `limit` (on its estimate's side) at level z:
+    the profile test where given and not screened out, the Wald test otherwise (module
+    docstring); the statistics used go into `evidence["tests"]`."""
+    wald = abs(estimate - limit) / std_error if std_error > 0 else math.inf
+    log_wald = (
+        abs(math.log(estimate / limit)) * estimate / std_error
+        if estimate > 0 and std_error > 0
+        else wald
+    )
+    test = {"limit": limit, "wald": wald, "wald_log": log_wald}
+    evidence.setdefault("tests", []).append(test)
+    if profile is not None and max(wald, log_wald) >= z / 2:
+        point = profile(limit)
+        test["profile"] = point.to_dict()
+        if point.status == "converged" and math.isfinite(point.statistic):
+            return point.statistic > z
+    return wald > z and not wide
+
+
 def judge(
     name: str,
     estimate: float,
@@ -135,25 +164,35 @@ def judge(
     *,
     z: float,
     identifiable: bool = True,
+    profile=None,
 ) -> Verdict:
-    """The verdict on one element by the rule of the module docstring (`z` from `decision_z`)."""
+    """The verdict on one element by the rule of the module docstring (`z` from `decision_z`;
+    `profile`: `None` or `limit -> ProfilePoint`, the profile test at a limit [unit])."""
     estimate, std_error = float(estimate), float(std_error)
     lo, hi = estimate - z * std_error, estimate + z * std_error
     h_lo, h_hi = band.healthy
     evidence = {"decision_interval": [lo, hi], "z": z}
+    wide = hi - lo > h_hi - h_lo
     if not (identifiable and math.isfinite(std_error) and std_error >= 0):
         verdict, reason = "not identifiable", "the sensors do not determine this element"
-    elif hi - lo > h_hi - h_lo:
-        verdict = "not identifiable"
-        reason = "the decision interval is wider than the healthy band"
-    elif band.failed_below is not None and hi < band.failed_below:
-        verdict, reason = "failed", f"the decision interval lies below {band.failed_below:.4g}"
-    elif band.failed_above is not None and lo > band.failed_above:
-        verdict, reason = "failed", f"the decision interval lies above {band.failed_above:.4g}"
-    elif hi < h_lo or lo > h_hi:
-        verdict, reason = "degraded", "the decision interval lies outside the healthy band"
     else:
-        verdict, reason = "healthy", "the decision interval overlaps the healthy band"
+        below = estimate < h_lo
+        edge, limit = (h_lo, band.failed_below) if below else (h_hi, band.failed_above)
+        beyond = lambda x: _beyond(estimate, std_error, x, z, wide, profile, evidence)
+        past_limit = limit is not None and (estimate < limit if below else estimate > limit)
+        # the nearer limit first: past the failure limit, the edge is rejected with it
+        failed = past_limit and beyond(limit)
+        outside = failed or ((below or estimate > h_hi) and beyond(edge))
+        side = "below" if below else "above"
+        if failed:
+            verdict, reason = "failed", f"the element lies {side} {limit:.4g}"
+        elif outside:
+            verdict, reason = "degraded", f"the element lies {side} its healthy band"
+        elif wide:
+            verdict = "not identifiable"
+            reason = "the decision interval is wider than the healthy band"
+        else:
+            verdict, reason = "healthy", "the data do not put the element outside its healthy band"
     evidence["reason"] = reason
     half = Z95 * std_error
     return Verdict(

@@ -37,8 +37,9 @@ def plot_verdicts(verdicts, *, ax=None, title: str | None = None):
     elements of different units share one axis.
 
     The healthy band is the shaded span of each row, the failure limit (`failed_below`,
-    `failed_above`) a red tick, the decision interval of the verdict rule (the evidence's
-    `decision_interval`, wider than the 95 % interval when several elements are judged) a
+    `failed_above`) a red tick, the Wald decision interval estimate +- z standard errors (the
+    evidence's `decision_interval`, wider than the 95 % interval when several elements are
+    judged; an element estimated outside its band is judged by its profile test) a
     pale bar behind the 95 % error bar; markers are coloured by verdict (healthy green, degraded
     orange, failed red, not identifiable grey: no estimate, the row shows only the band).
 
@@ -78,7 +79,7 @@ def plot_verdicts(verdicts, *, ax=None, title: str | None = None):
         )  # fmt: skip
     ax.plot([], [], color="C3", lw=1.5, label="failure limit")
     ax.errorbar([], [], xerr=[], fmt="o", color="k", capsize=3, label="estimate, 95 % interval")
-    ax.plot([], [], color="k", lw=4, alpha=0.3, label="decision interval (verdict rule)")
+    ax.plot([], [], color="k", lw=4, alpha=0.3, label="decision interval (estimate +- z SE)")
     ax.axvline(1.0, color="k", lw=0.6)
     ax.set_yticks(y, [r["name"] for r in rows])
     ax.set_ylim(y.min() - 0.7, y.max() + 0.7)
