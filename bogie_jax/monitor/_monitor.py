@@ -437,7 +437,7 @@ def _verdicts(
         }  # fmt: skip
         z = decision_z(alpha, len(coords))
         for j, (c, value, err, err_gn) in enumerate(zip(coords, values, se, se_gn)):
-            ratio = float(err / err_gn) ** 2 if err_gn > 0 else 1.0
+            ratio = float(err / err_gn) ** 2 if np.isfinite(err) and err_gn > 0 else 1.0
 
             def profile(limit, j=j, c=c, ratio=ratio):
                 return profile_at(j, math.log(limit / c.nominal), sigma2, ratio)
