@@ -1,4 +1,4 @@
-"""The profile likelihood-ratio test of `monitor`'s verdicts (`bogie_jax.monitor._profile`),
+"""The profile likelihood-ratio test of `monitor`'s verdicts (`bogie_jax.monitor.profile_point`),
 on a two-parameter decay curve y = a exp(-b t) fitted in ln a, ln b: against scipy's bounded
 least squares (the held fit) and against its nominal false-alarm rate in repeated trials."""
 
@@ -9,8 +9,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from bogie_jax.monitor import ToleranceBand, judge, levenberg_marquardt
-from bogie_jax.monitor._profile import ProfilePoint, profile_point
+from bogie_jax.monitor import (
+    ProfilePoint,
+    ToleranceBand,
+    judge,
+    levenberg_marquardt,
+    profile_point,
+)
 
 
 T = np.linspace(0.0, 1.0, 40)

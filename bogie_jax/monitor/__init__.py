@@ -45,6 +45,7 @@ from ._nuisance import (
     OFFSET_SCALE as OFFSET_SCALE,
     SPEED_SCALE as SPEED_SCALE,
 )
+from ._profile import ProfilePoint as ProfilePoint, profile_point as profile_point
 from ._result import (
     FitSummary as FitSummary,
     MonitorResult as MonitorResult,
