@@ -18,7 +18,7 @@ beyond the limit, at the level the false-alarm rate sets, when it exceeds z.
 
 Cost: one Levenberg-Marquardt fit from the unconstrained optimum (moved along the linearised
 profile to the limit), on the same compiled program: no compile, a few Jacobian evaluations
-(3 to 16 on the demo's case, 5 to 26 s on 2 CPU cores).
+(detection benchmark, 100 cases: 78 held fits, a median 2 LM steps, 2 ran out of 30 steps).
 """
 
 import dataclasses
