@@ -12,12 +12,14 @@ Decision rule (documented in the README, "Verdict rules"):
   of its estimate: with a `profile` (`monitor` gives one: `_profile.py`), the signed root of
   the profile likelihood-ratio statistic at L exceeds z; it is computed where the Wald
   statistic at L, in p or in ln p, reaches z / 2 (below that, neither Wald test is near
-  rejecting and the profile is not fitted). The nearer limit is tested first: an element
-  beyond its failure limit is beyond its band's edge as well (the profile likelihood falls
-  monotonically away from the estimate). Without a profile (or where its fit failed or did
-  not converge: its statistic is then only an upper bound), the Wald test: the decision
-  interval I = estimate +- z * standard_error lies beyond L, and I is not wider than the
-  healthy band (a linearisation that spans more than the band is not trusted to reject).
+  rejecting and the profile is not fitted: in the detection benchmark's 76 converged held fits
+  the profile statistic was at most 1.03 times the larger Wald statistic). The nearer limit
+  is tested first: an element beyond its failure limit is beyond its band's edge as well (the
+  profile likelihood falls monotonically away from the estimate). Without a profile (or
+  where its fit failed or did not converge: its statistic is then only an upper bound), the
+  Wald test: the decision interval I = estimate +- z * standard_error lies beyond L, and I is
+  not wider than the healthy band (a linearisation that spans more than the band is not
+  trusted to reject).
 - `failed`: the element lies beyond the failure limit (below `failed_below`, or above
   `failed_above` where a band has one).
 - `degraded`: it lies outside the healthy band (and has not failed).
