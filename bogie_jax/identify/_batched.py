@@ -60,7 +60,8 @@ class BatchedFits:
             if schedule is not None:
                 theta0, _, _, _ = anneal_theta(problem, theta0, key, schedule)
             out = method_.solve(problem, theta0, max_steps)
-            return out, problem.cost(out.theta)
+            cost = problem.cost(out.theta) if out.cost is None else out.cost
+            return out, cost
 
         self.runner = batch_runner(
             member, devices=devices, failure_fn=lambda out: ~is_successful(out[0].result)

@@ -34,8 +34,9 @@ class LocalOutput(eqx.Module):
     """Raw outcome of one local solve (vmappable: no `Solution` objects). `result`: the solver
     status, an `optimistix.RESULTS` (batched along the member axis in a batch; on the host read
     it with `status_names`, store it by name and read it back with `results_from_names`).
-    `jacobian`: the residual Jacobian `dr/dtheta` (m, n) at `theta` where the fit's own state
-    holds it (the queued Gauss-Newton family, `_iteration.least_squares_member`), else `None`."""
+    `jacobian`: the residual Jacobian `dr/dtheta` (m, n) at `theta`, and `cost` = 0.5 r^T r
+    there, where the fit's own state holds them (the Gauss-Newton family: `LeastSquaresMethod`
+    and the queued `_iteration.least_squares_member`), else `None`."""
 
     theta: jax.Array
     result: optx.RESULTS
@@ -43,6 +44,7 @@ class LocalOutput(eqx.Module):
     num_fn_evals: jax.Array
     num_jac_evals: jax.Array
     jacobian: jax.Array | None = None
+    cost: jax.Array | None = None
 
 
 class AbstractLocalMethod(eqx.Module):
@@ -57,7 +59,11 @@ class LeastSquaresMethod(AbstractLocalMethod):
     """An optimistix least-squares solver (LM, Gauss-Newton, Dogleg) on the residuals.
 
     Each step linearises the residuals once (`jax.linearize`): one residual evaluation and one
-    forward-mode Jacobian per step.
+    forward-mode Jacobian per step. The output carries the residual Jacobian and the cost at
+    the end from the solver's state (`state.f_info`: the residuals and linearisation at the
+    iterate the last step returned, as `_iteration.least_squares_member` reads them), so the
+    statistics evaluate nothing again: one copy of the simulation and its tangents fewer in a
+    compiled fit.
     """
 
     solver: optx.AbstractLeastSquaresSolver
@@ -69,7 +75,10 @@ class LeastSquaresMethod(AbstractLocalMethod):
             problem_residuals, self.solver, theta0, problem, max_steps=max_steps, throw=False
         )
         steps = jnp.asarray(sol.stats["num_steps"])
-        return LocalOutput(sol.value, sol.result, steps, steps, steps)
+        f_info = sol.state.f_info
+        jac = f_info.jac.as_matrix()  # products with unit vectors: exact
+        cost = 0.5 * jnp.sum(jnp.ravel(f_info.residual) ** 2)
+        return LocalOutput(sol.value, sol.result, steps, steps, steps, jacobian=jac, cost=cost)
 
 
 class MinimiserMethod(AbstractLocalMethod):
@@ -222,8 +231,8 @@ class FitResult(eqx.Module):
     rank-deficient fit has infinite standard errors for the parameters of its unidentifiable
     combinations. `ci95` uses the Student-t quantile with `dof` degrees of freedom. Evaluation
     counts include the final residual + Jacobian evaluation for the statistics where one is
-    made (`fit`, and a multistart whose fits do not end with their Jacobian: see
-    `_multistart.collect`). `status`:
+    made (a fit whose output holds no Jacobian, e.g. BFGS, and a multistart whose fits do not
+    end with their Jacobian: see `_multistart.collect`). `status`:
     `optimistix.RESULTS`; `wall_time` [s]: the fit's time (compile included on a first call).
     """
 
@@ -320,8 +329,13 @@ def statistics(problem, theta, bound_tol: float):
 
 @eqx.filter_jit
 def _fit_jit(problem, theta0, method, max_steps, bound_tol):
+    """The fit and its statistics: from the Jacobian and cost the fit ended with where its
+    output holds them, else from one more evaluation (`extra` = 1 in the counts)."""
     out = method.solve(problem, theta0, max_steps)
-    return out, statistics(problem, out.theta, bound_tol)
+    if out.jacobian is None or out.cost is None:
+        return out, statistics(problem, out.theta, bound_tol), 1
+    tr = problem.transform
+    return out, fit_statistics(tr, out.theta, out.cost, out.jacobian, bound_tol), 0
 
 
 def fit(
@@ -354,14 +368,15 @@ def fit(
     tic = time.perf_counter()
     # `bound_tol` as an array: a traced input, so another value does not compile again
     tol = jnp.asarray(bound_tol, dtype=float)
-    out, stats = jax.block_until_ready(_fit_jit(problem, theta0, method, max_steps, tol))
+    out, stats, extra = _fit_jit(problem, theta0, method, max_steps, tol)
+    out, stats = jax.block_until_ready((out, stats))
     wall = time.perf_counter() - tic
     result = FitResult(
         names=param_names(problem.transform, theta0.size),
         theta=out.theta,
         num_steps=out.num_steps,
-        num_fn_evals=out.num_fn_evals + 1,
-        num_jac_evals=out.num_jac_evals + 1,
+        num_fn_evals=out.num_fn_evals + extra,
+        num_jac_evals=out.num_jac_evals + extra,
         status=out.result,
         wall_time=np.asarray(wall),
         **stats,
