@@ -16,6 +16,7 @@ import pytest
 from bogie_jax.cost import (
     covariance_from_jacobian,
     hac_bandwidth,
+    relative_to_nominal,
     sandwich_covariance,
     score_series,
 )
@@ -153,6 +154,35 @@ def test_sandwich_reports_unidentifiable_directions_as_the_gauss_newton_one():
     assert int(sw.rank) == int(gn.rank) == 2
     assert np.all(np.isinf(np.asarray(sw.std_errors)))
     np.testing.assert_array_equal(np.asarray(sw.null), np.asarray(gn.null))
+
+
+def test_an_element_estimated_near_zero_keeps_its_standard_error():
+    """A failed damper (truth 0): the fit's log coordinate phi = ln(p / p_nominal) runs towards
+    -inf, its Jacobian column (dr/dphi = p dr/dp) shrinks with p, and the rank test in phi
+    calls it unidentifiable (measured on a detection-benchmark case: estimate 0.017 N s/m,
+    standard error reported infinite). In x = p / p_nominal the data determine it as well as
+    at its nominal value. Oracle: the linear model's covariance sigma^2 (A^T A)^-1 in p."""
+    rng = np.random.default_rng(4)
+    a = rng.standard_normal((200, 3)) * np.array([1e-4, 2e-6, 5e-5])  # dr/dp, per unit of p
+    nominal = np.array([4e5, 1.2e6, 3e4])  # [N s/m], [N/m], [N s/m]
+    estimate = np.array([4e-3, 1.1e6, 3.3e4])  # the first at 1e-8 of nominal
+    phi = np.log(estimate / nominal)
+    jac_phi = a * estimate  # dr/dphi = dr/dp dp/dphi
+    oracle = np.sqrt(np.diag(np.linalg.inv(a.T @ a)))
+    in_phi = covariance_from_jacobian(jac_phi, scale=estimate)
+    assert np.isinf(float(in_phi.std_errors[0]))  # the defect this guards against
+    jac_x, scale_x = relative_to_nominal(jac_phi, estimate, phi)
+    np.testing.assert_allclose(scale_x, nominal, rtol=1e-12)
+    got = covariance_from_jacobian(jac_x, scale=scale_x)
+    assert int(got.rank) == 3
+    np.testing.assert_allclose(np.asarray(got.std_errors), oracle, rtol=1e-8)
+    sw = sandwich_covariance(jac_x, rng.standard_normal(200), bandwidth=1.0, scale=scale_x)
+    assert np.all(np.isfinite(np.asarray(sw.std_errors)))
+    # away from zero nothing changes: the same covariance in phi and in x
+    jac_x, scale_x = relative_to_nominal(a * nominal, nominal, np.zeros(3))
+    np.testing.assert_allclose(
+        np.asarray(covariance_from_jacobian(jac_x, scale=scale_x).std_errors), oracle, rtol=1e-8
+    )
 
 
 def test_sandwich_rejects_bad_input():

@@ -9,6 +9,7 @@ from ._covariance import (
     covariance_from_jacobian as covariance_from_jacobian,
     hac_bandwidth as hac_bandwidth,
     long_run_covariance as long_run_covariance,
+    relative_to_nominal as relative_to_nominal,
     sandwich_covariance as sandwich_covariance,
     score_series as score_series,
 )

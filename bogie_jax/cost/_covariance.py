@@ -111,6 +111,20 @@ def covariance_from_jacobian(
     return Covariance(cov, std, corr, eig, v, null, rank, cond)
 
 
+def relative_to_nominal(jac, scale, phi_log):
+    """A residual Jacobian `(m, n)` and its `scale` (dp/dv, `(n,)`, as `covariance_from_jacobian`
+    takes them) with the leading log coordinates phi = ln(p / p_nominal) (`phi_log`, one value
+    per column) replaced by x = p / p_nominal: those columns and scales times exp(-phi)
+    (dp/dx = p_nominal); the other columns unchanged. The covariance of p is the same; the rank
+    test (information eigenvalues against the largest) then compares the columns on one scale.
+    In phi a column shrinks with p (dr/dphi = p dr/dp): an element estimated near zero (a failed
+    damper, phi -> -inf) would count as unidentifiable, while the data determine p as well as
+    at its nominal value."""
+    rel = np.ones(np.shape(jac)[1])
+    rel[: len(phi_log)] = np.exp(np.asarray(phi_log, dtype=float))
+    return np.asarray(jac) / rel, np.asarray(scale) / rel
+
+
 # ----------------------------------------------------------------------------------------------
 # Sandwich (heteroscedasticity- and autocorrelation-consistent) covariance
 # ----------------------------------------------------------------------------------------------

@@ -31,7 +31,9 @@ Steps (each documented where it is done):
    `bogie_jax.cost.sandwich_covariance`, Newey-West with the Bartlett kernel and Andrews'
    bandwidth, consistent when the misfit of model and track is smooth in time and differs
    between channels; never below the Gauss-Newton standard errors with the estimated noise
-   variance; `"gauss-newton"`: `bogie_jax.cost.covariance_from_jacobian`) and a verdict per
+   variance; `"gauss-newton"`: `bogie_jax.cost.covariance_from_jacobian`; both in the
+   coordinates p / p_nominal, `bogie_jax.cost.relative_to_nominal`, so that an element fitted
+   near zero keeps its standard error) and a verdict per
    coordinate by `judge` (`_verdict.py`), the decision z set by `false_alarm_rate` over the
    judged coordinates (Bonferroni); the judged block of the covariance of all fitted
    coordinates (nuisance included), so the intervals carry the nuisance's uncertainty; an
@@ -54,6 +56,7 @@ from ..cost import (
     covariance_from_jacobian,
     long_run_covariance,
     make_joint_objective,
+    relative_to_nominal,
     residual_jacobian,
     sandwich_covariance,
     score_series,
@@ -425,7 +428,8 @@ def _verdicts(
         values = np.array([c.nominal for c in coords]) * np.exp(fit.phi[:k])
         extra_values = nominal_extra * np.exp(fit.phi[k : k + len(extra_names)])
         scale = layout_x.scale(np.concatenate([values, extra_values]), x_fit)
-        cov, gn, width = _covariance(fit.jac, fit.r, layout, n_bias, sigma2, kind, bandwidth, scale)
+        jac, scale = relative_to_nominal(fit.jac, scale, fit.phi[: k + len(extra_names)])
+        cov, gn, width = _covariance(jac, fit.r, layout, n_bias, sigma2, kind, bandwidth, scale)
         se_all, se_gn = np.asarray(cov.std_errors), np.asarray(gn.std_errors)
         se, se_extra = se_all[:k], se_all[k:]
         fitted_nuisance = {
