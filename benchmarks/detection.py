@@ -32,10 +32,11 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 - `worn-wheels` (f): the true cone slope is nominal times a factor uniform in [0.7, 1.3];
 - `none`: no imperfection; `all`: (a)-(f); `offset` is another name of `track`.
 
-**Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal)`, default
-arguments otherwise): truth, verdicts, estimates, standard errors, 95 % intervals, fit status,
-wall times; each finished case is appended as one line of `results/<out>.jsonl` (per shard:
-`<out>.shard<i>of<n>.jsonl`) and a re-run skips the cases found there.
+**Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal,
+track_error=<the records' error RMS, --track-error>)`, default arguments otherwise): truth,
+verdicts, estimates, standard errors, 95 % intervals, fit status, wall times; each finished
+case is appended as one line of `results/<out>.jsonl` (per shard: `<out>.shard<i>of<n>.jsonl`)
+and a re-run skips the cases found there.
 
 **Aggregates** (over every record of `<out>*.jsonl`): per defect type the detection rate (any
 element degraded or failed), the correct-element rate among detected cases (an alarm on a
@@ -149,7 +150,14 @@ def config_of(args) -> dict:
         "bias_fraction": args.bias,
         "max_wear": args.max_wear,
         "false_alarm_rate": args.false_alarm_rate,
+        **({"track_error_mm": track_error_mm(args)} if track_error_mm(args) else {}),
     }
+
+
+def track_error_mm(args) -> float:
+    """The track records' error RMS [mm] `monitor` is told (`--track-error`; 0: none, and the
+    configuration of the records written before the option existed)."""
+    return float(args.track_error)
 
 
 def draw_case(cfg: dict, index: int) -> dict:
@@ -234,7 +242,10 @@ def run_case(cfg: dict, index: int) -> dict:
         ]
         record["simulate_s"] = time.perf_counter() - tic
         t0 = time.perf_counter()
-        result = monitor(runs, tracks, params=nominal, false_alarm_rate=cfg["false_alarm_rate"])
+        result = monitor(
+            runs, tracks, params=nominal, false_alarm_rate=cfg["false_alarm_rate"],
+            track_error=1e-3 * cfg.get("track_error_mm", 0.0),
+        )  # fmt: skip
         record["monitor_s"] = time.perf_counter() - t0
     except (RuntimeError, ValueError) as e:
         record.update(error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - tic)
@@ -253,6 +264,9 @@ def run_case(cfg: dict, index: int) -> dict:
             "members": list(v.evidence.get("members") or [v.name]),
             "identifiable": v.evidence.get("identifiable", ""),
             "tests": v.evidence.get("tests", []),
+            "std_error_gauss_newton": v.evidence.get("std_error_gauss_newton"),
+            "std_error_track_record": v.evidence.get("std_error_track_record"),
+            "std_error_residuals": v.evidence.get("std_error_residuals"),
         }
         for v in result.verdicts
     ]
@@ -579,6 +593,11 @@ def main(argv=None):
     p.add_argument("--track-spectrum", default="erri-low")
     p.add_argument("--track-noise", type=float, default=0.3, help="record error RMS [mm]")
     p.add_argument("--max-offset", type=float, default=0.5, help="record offset bound [m]")
+    p.add_argument(
+        "--track-error", type=float, default=0.0,
+        help="record error RMS [mm] given to monitor, carried into its intervals (default 0: "
+        "records taken as exact; --track-noise's value tells it the truth)",
+    )  # fmt: skip
     p.add_argument("--max-speed-error", type=float, default=0.01, help="relative bound")
     p.add_argument("--bias", type=float, default=0.05, help="bias bound / channel RMS")
     p.add_argument("--max-wear", type=float, default=0.3, help="cone slope factor 1 +- this")

@@ -152,6 +152,7 @@ def test_history_refuses_a_zero_width_band(tmp_path, capsys):
         (["monitor", "--data", "missing.csv"], "file 'missing.csv' does not exist"),
         (["monitor", "--data", "a.csv", "--history", "b"], "not allowed with argument"),
         (["monitor", "--history", "x", "--false-alarm-rate", "0.7"], "must lie in (0, 0.5)"),
+        (["monitor", "--history", "x", "--track-error", "-1"], "`--track-error` = -1.0 mm"),
         (["demo", "--speeds", ""], "`--speeds` is empty"),
         (["demo", "--speeds", "30,fast"], "comma-separated numbers"),
         (["demo", "--speeds", "30,500"], "speed"),

@@ -483,6 +483,12 @@ def test_monitor_rejects_bad_input_before_fitting(nominal):
         monitor([a, b], nuisance=("yaw_dampers.left.c",))  # a candidate
     with pytest.raises(ValueError, match="nuisance"):
         monitor([a, b], nuisance=("contact.cone_slopes",))
+    with pytest.raises(ValueError, match="`track_error` = -0.0003 m"):
+        monitor([a, b], track_error=-3e-4)
+    with pytest.raises(ValueError, match="`track_error_draws` = 1"):
+        monitor([a, b], track_error=3e-4, track_error_draws=1)
+    with pytest.raises(ValueError, match="`covariance` = 'robust'"):
+        monitor([a, b], covariance="robust")
 
 
 @pytest.mark.heavy
@@ -641,6 +647,16 @@ def test_demo_verdicts_json_schema(demo):
     assert factor == 0.5
     assert [r["speed"] for r in record["runs"]] == [30.0, 50.0]
     assert record["track_record"] == {"noise_mm": 0.3, "offset_m": 0.1}
+    # the demo knows its record's error: carried into the intervals (16 realisations, all used)
+    fit = record["fit"]
+    assert fit["track_error"] == pytest.approx(3e-4) and fit["track_error_draws"] == 16
+    assert fit["covariance"] == "gauss-newton"  # the default with a track error
+    for row in rows:
+        if row["estimate"] is not None:
+            ev = row["evidence"]
+            assert 0 < ev["std_error_track_record"] < row["std_error"], row["name"]
+            total = np.hypot(ev["std_error_residuals"], ev["std_error_track_record"])
+            assert row["std_error"] == pytest.approx(total, rel=1e-9), row["name"]
     assert read_verdicts(out)["date"] == "2026-03-04"  # the reader accepts its directory
 
 
@@ -669,6 +685,7 @@ def test_monitor_data_replays_the_demo_from_its_files(demo, tmp_path, capsys):
     tracks = [str(data / f"track{k}.csv") for k in range(2)]
     again = tmp_path / "again"
     argv = ["monitor", "--data", *runs, "--track", *tracks, "--out", str(again)]
+    argv += ["--track-error", "0.3"]  # the demo's record error (its default --track-noise)
     assert main([*argv, "--date", "2026-03-05"]) == 0
     first = json.loads((out / "verdicts.json").read_text())
     second = json.loads((again / "verdicts.json").read_text())

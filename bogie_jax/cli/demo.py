@@ -7,7 +7,9 @@ true one: the true irregularity plus a recording error of `--track-noise` RMS pe
 positioned `--track-offset` metres wrong along the track. The recording error is a second,
 independent realisation of the same spectrum (`TrackReference` with another seed) scaled to
 that RMS (the cross level to the level difference of the two rails over the contact distance
-2 b_0): an error spectrum shaped like the track's (`bogie_jax.monitor.recorded_track`).
+2 b_0): an error spectrum shaped like the track's (`bogie_jax.monitor.recorded_track`). The
+demo knows that error's level and passes it to `monitor` (`track_error`), which carries it
+into the intervals.
 """
 
 import datetime
@@ -194,6 +196,7 @@ def run(args, progress) -> int:
         tracks,
         params=params,
         false_alarm_rate=args.false_alarm_rate,
+        track_error=noise_m,  # the record's error is known here: carried into the intervals
         progress=lambda line: progress.say(f"  {line}"),
     )
     progress.say(verdict_table(result))

@@ -84,6 +84,13 @@ def add_parser(sub):
         help="probability of any false alarm on a healthy bogie, or of a drift flag on a steady "
         "element (default 0.05)",
     )
+    p.add_argument(
+        "--track-error",
+        type=float,
+        default=0.0,
+        help="--data: RMS error of the track records per channel [mm], carried into the "
+        "intervals (default 0: the records are taken as exact)",
+    )
     return p
 
 
@@ -95,6 +102,8 @@ def run(args, progress) -> int:
         )
     if not 0 < args.false_alarm_rate < 0.5:
         raise UsageError(f"`--false-alarm-rate` = {args.false_alarm_rate!r} must lie in (0, 0.5)")
+    if not 0 <= args.track_error <= 10:
+        raise UsageError(f"`--track-error` = {args.track_error!r} mm must lie in [0, 10]")
     if args.history is not None:
         return run_history(args, progress)
     return run_data(args, progress)
@@ -144,6 +153,7 @@ def run_data(args, progress) -> int:
             params=params,
             band=args.band,
             false_alarm_rate=args.false_alarm_rate,
+            track_error=1e-3 * args.track_error,
             progress=lambda line: progress.say(f"  {line}"),
         )
     except ValueError as e:  # mixed layouts, a zero-width band, ... (before any compile)

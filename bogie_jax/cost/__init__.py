@@ -12,6 +12,7 @@ from ._covariance import (
     relative_to_nominal as relative_to_nominal,
     sandwich_covariance as sandwich_covariance,
     score_series as score_series,
+    with_model_error as with_model_error,
 )
 from ._jacobian import forward_mode as forward_mode, residual_jacobian as residual_jacobian
 from ._joint import (

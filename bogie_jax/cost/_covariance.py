@@ -111,6 +111,22 @@ def covariance_from_jacobian(
     return Covariance(cov, std, corr, eig, v, null, rank, cond)
 
 
+def with_model_error(cov: Covariance, extra) -> Covariance:
+    """`cov` plus a model-error covariance `extra` `(n, n)` in its reported coordinates (an
+    error the residuals do not show, e.g. of the track record): the covariance, standard errors
+    and correlations of the sum. The information fields (eigenvalues, directions, null, rank,
+    condition number) are the data's and stay; a parameter with an infinite standard error
+    keeps it."""
+    total = jnp.asarray(cov.covariance) + jnp.asarray(extra)
+    loose = jnp.isinf(cov.std_errors)
+    std = jnp.where(loose, jnp.inf, jnp.sqrt(jnp.maximum(jnp.diag(total), 0.0)))
+    unit = jnp.where(loose, jnp.nan, std)
+    corr = total / jnp.outer(unit, unit)
+    return eqx.tree_at(
+        lambda c: (c.covariance, c.std_errors, c.correlation), cov, (total, std, corr)
+    )
+
+
 def relative_to_nominal(jac, scale, phi_log):
     """A residual Jacobian `(m, n)` and its `scale` (dp/dv, `(n,)`, as `covariance_from_jacobian`
     takes them) with the leading log coordinates phi = ln(p / p_nominal) (`phi_log`, one value

@@ -58,6 +58,10 @@ from ._robust import (
     channel_weights as channel_weights,
     leverage as leverage,
 )
+from ._track_error import (
+    record_error as record_error,
+    track_error_covariance as track_error_covariance,
+)
 from ._trend import Trend as Trend, trend as trend, two_sided_p_value as two_sided_p_value
 from ._verdict import (
     VERDICTS as VERDICTS,

@@ -27,23 +27,27 @@ Steps (each documented where it is done):
    reweighted by 1 / sqrt of it (floored at 1e-4 of the assumed variance) and the fit repeated
    from its estimate with the same program, up to `REWEIGHTS` times, until no channel's weight
    changes by more than `SETTLED`;
-7. the covariance of the estimates (`covariance="sandwich"`, the default:
-   `bogie_jax.cost.sandwich_covariance`, Newey-West with the Bartlett kernel and Andrews'
-   bandwidth, consistent when the misfit of model and track is smooth in time and differs
-   between channels; never below the Gauss-Newton standard errors with the estimated noise
-   variance; `"gauss-newton"`: `bogie_jax.cost.covariance_from_jacobian`; both in the
-   coordinates p / p_nominal, `bogie_jax.cost.relative_to_nominal`, so that an element fitted
-   near zero keeps its standard error) and a verdict per
+7. the covariance of the estimates (`covariance="sandwich"`, the default without a
+   `track_error`: `bogie_jax.cost.sandwich_covariance`, Newey-West with the Bartlett kernel
+   and Andrews' bandwidth, consistent when the misfit of model and track is smooth in time and
+   differs between channels; never below the Gauss-Newton standard errors with the estimated
+   noise variance; `"gauss-newton"`: `bogie_jax.cost.covariance_from_jacobian`, the default
+   with a `track_error`; both in the coordinates p / p_nominal,
+   `bogie_jax.cost.relative_to_nominal`, so that an element fitted near zero keeps its
+   standard error), plus, with a `track_error`, the track records' error term
+   (`_track_error.py`: the estimates' shift by realisations of the records' error, each one
+   more evaluation of the compiled program), and a verdict per
    coordinate by `judge` (`_verdict.py`), the decision z set by `false_alarm_rate` over the
    judged coordinates (Bonferroni); the judged block of the covariance of all fitted
    coordinates (nuisance included), so the intervals carry the nuisance's uncertainty; an
    element estimated outside its band is tested there by the profile likelihood ratio
    (`_profile.py`: the fit repeated with the element held at the band's edge).
 
-Steps 3, 6 and 7 are numpy on the residuals and Jacobian the compiled program returns: nothing
-more is compiled.
+Steps 3, 6 and 7 are numpy on the residuals and Jacobian the compiled program returns (step 7
+also evaluates it with other track records): nothing more is compiled.
 """
 
+import dataclasses
 import math
 import time
 
@@ -60,6 +64,7 @@ from ..cost import (
     residual_jacobian,
     sandwich_covariance,
     score_series,
+    with_model_error,
 )
 from ..params import BogieParams, ModelOptions, manchester_benchmark, resolve_parameter
 from ..simulation import SolveSettings
@@ -76,6 +81,7 @@ from ._nuisance import DEFAULT_NUISANCE, NuisanceLayout, check_nuisance
 from ._profile import profile_point
 from ._result import FitSummary, MonitorResult, RunStatus
 from ._robust import RunChannels, channel_variances, channel_weights
+from ._track_error import track_error_covariance
 from ._verdict import check_false_alarm_rate, decision_z, judge
 
 
@@ -95,7 +101,7 @@ def monitor(
     band=None,
     false_alarm_rate: float = 0.05,
     noise: str = "per-channel",
-    covariance: str = "sandwich",
+    covariance: str | None = None,
     remove_bias: bool = True,
     run_corrections: bool = True,
     nuisance=DEFAULT_NUISANCE,
@@ -104,6 +110,8 @@ def monitor(
     max_correlation: float = MAX_CORRELATION,
     max_steps: int = 30,
     run_misfit: float = RUN_MISFIT,
+    track_error: float = 0.0,
+    track_error_draws: int = 16,
     options: ModelOptions = ModelOptions(),
     settings: SolveSettings | None = None,
     weights=None,
@@ -130,9 +138,11 @@ def monitor(
       sigma^2 = 2 J / (m - n - b) of the reweighted fit, b the bias parameters); with the
       sensors' nominal `noise_std` weights: `"nominal"` (sigma^2 = 1), `"estimated"`
       (2 J / (m - n - b)), `"max"` (the larger of both).
-    - `covariance`: `"sandwich"` (default: `bogie_jax.cost.sandwich_covariance`, right when the
+    - `covariance`: `"sandwich"` (`bogie_jax.cost.sandwich_covariance`, right when the
       misfit is autocorrelated in time or differs between channels) or `"gauss-newton"`
-      (sigma^2 (J^T J)^+). Rule: a sandwich standard error is never reported below the
+      (sigma^2 (J^T J)^+); default `None`: the sandwich, or Gauss-Newton where `track_error`
+      models the misfit the sandwich is there for (the sandwich would count its part seen in
+      the residuals twice). Rule: a sandwich standard error is never reported below the
       Gauss-Newton one with the `noise` mode's sigma^2.
     - `remove_bias`: eliminate a constant sensor bias per run and channel (default `True`;
       module docstring step 3). Costs one degree of freedom per run and channel.
@@ -151,6 +161,10 @@ def monitor(
       out after the first fit (`_checks.failed_runs`: a run whose simulation fails, or whose
       residuals stay above sqrt(run_misfit) times the sensors' nominal noise while another run
       is fitted `run_misfit` times better); the verdicts then say they used fewer runs;
+    - `track_error`: RMS [m] of the track records' error in alignment and vertical level
+      (cross level: over the contact distance), propagated into the estimates' covariance by
+      `track_error_draws` (>= 2) realisations shaped like the records (`_track_error.py`);
+      default 0: the records are taken as exact.
     - `options`, `settings`, `weights`: as `make_objective`; `progress`: a callable taking one
       line of text, or `None`.
 
@@ -160,7 +174,8 @@ def monitor(
     **Raises:** `ValueError` before anything is compiled: no measurements, mixed sensor
     layouts, a track count that differs from the measurement count, unknown or repeated
     candidates, a band of zero width, a false-alarm rate outside (0, 0.5), an unknown `noise`
-    or `covariance`, a `bandwidth` below 1. `RuntimeError` if the simulation fails for every
+    or `covariance`, a `bandwidth` below 1, a `track_error` that is not finite and >= 0 or
+    fewer than 2 `track_error_draws`. `RuntimeError` if the simulation fails for every
     run.
     """
     tic = time.perf_counter()
@@ -169,10 +184,16 @@ def monitor(
     check_false_alarm_rate(false_alarm_rate)
     if noise not in NOISE_MODES:
         raise ValueError(f"`noise` = {noise!r} must be one of {', '.join(NOISE_MODES)}")
-    if covariance not in COVARIANCES:
-        raise ValueError(f"`covariance` = {covariance!r} must be one of {', '.join(COVARIANCES)}")
+    if covariance is not None and covariance not in COVARIANCES:
+        raise ValueError(
+            f"`covariance` = {covariance!r} must be None or one of {', '.join(COVARIANCES)}"
+        )
     if bandwidth is not None and not float(bandwidth) >= 1:
         raise ValueError(f"`bandwidth` = {bandwidth!r} must be None or >= 1 (samples)")
+    if not (math.isfinite(track_error) and track_error >= 0):
+        raise ValueError(f"`track_error` = {track_error!r} m must be finite and >= 0")
+    if not (isinstance(track_error_draws, int) and track_error_draws >= 2):
+        raise ValueError(f"`track_error_draws` = {track_error_draws!r} must be an integer >= 2")
     if not 0 < resolution <= 1 or not 0 < max_correlation <= 1:
         raise ValueError(
             f"`resolution` = {resolution!r} and `max_correlation` = {max_correlation!r} must lie "
@@ -327,9 +348,30 @@ def monitor(
     timings["fit_s"] = time.perf_counter() - t0
 
     # 7. covariance and verdicts (profile tests where an element may lie outside its band)
+    kind = covariance or ("gauss-newton" if track_error > 0 else "sandwich")
     used = layout()
     layout_x = nuis()
     x_fit = layout_x.matrix(a) @ fit.phi if fit is not None else np.zeros(layout_x.n_x)
+    t0 = time.perf_counter()
+    track_cov, draws_used = None, 0
+    if track_error > 0 and fit is not None and fit.status != "failed":
+        say(f"track record error {1e3 * track_error:.3g} mm: {track_error_draws} realisations")
+
+        def residuals_with(records):
+            perturbed = make_joint_objective(
+                measurements, params, records, names + extra_names, options=options,
+                settings=settings, weights=weights,
+            ).forward_mode()  # fmt: skip
+            if run_corrections:
+                perturbed = perturbed.with_run_corrections()
+            r, _ = jax.block_until_ready(_JACOBIAN(with_active(perturbed), jnp.asarray(x_fit)))
+            return project(np.asarray(r)) * rows
+
+        track_cov, draws_used = track_error_covariance(
+            residuals_with, tracks, fit.jac, rms=track_error, draws=track_error_draws,
+            semi_distance=float(np.asarray(params.contact.contact_semi_distance)),
+        )  # fmt: skip
+        timings["track_error_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
 
     def profile_at(index, phi_limit, sigma2, variance_ratio):
@@ -340,11 +382,12 @@ def monitor(
         )  # fmt: skip
 
     verdicts, summary, se_extra = _verdicts(
-        coords, statuses, fit, fits, bands, used, n_bias, noise, covariance, bandwidth,
+        coords, statuses, fit, fits, bands, used, n_bias, noise, kind, bandwidth,
         false_alarm_rate, active, n_runs, s2_channels, remove_bias, reweights,
-        layout_x, x_fit, params, extra_names, profile_at,
+        layout_x, x_fit, params, extra_names, profile_at, track_cov,
     )  # fmt: skip
     timings["verdicts_s"] = time.perf_counter() - t0
+    summary = dataclasses.replace(summary, track_error=track_error, track_error_draws=draws_used)
     offsets, factors = layout_x.offsets(x_fit), np.exp(layout_x.log_speed_factors(x_fit))
     fitted = fit is not None and fit.status != "failed" and run_corrections
     se_runs = np.full((2, n_runs), np.nan)
@@ -403,11 +446,12 @@ def _covariance(jac, r, layout, n_nuisance, sigma2, kind, bandwidth, values):
 def _verdicts(
     coords, statuses, fit, fits, bands, layout, n_bias, noise, kind, bandwidth, alpha, active,
     n_runs, s2_channels, remove_bias, reweights, layout_x, x_fit, params, extra_names,
-    profile_at,
+    profile_at, track_cov,
 ):  # fmt: skip
     """Verdicts, the `FitSummary` and the standard errors of the fitted nuisance coordinates
     (parameters' values, offsets [m], speed factors); `profile_at(index, phi_limit, sigma2,
-    variance_ratio) -> ProfilePoint`: the profile test of a fitted coordinate."""
+    variance_ratio) -> ProfilePoint`: the profile test of a fitted coordinate; `track_cov`:
+    the track records' error term in the fitted coordinates, or `None`."""
     used = f"{int(active.sum())} of {n_runs} runs"
     se_extra = np.zeros(0)
     verdicts = []
@@ -428,8 +472,13 @@ def _verdicts(
         values = np.array([c.nominal for c in coords]) * np.exp(fit.phi[:k])
         extra_values = nominal_extra * np.exp(fit.phi[k : k + len(extra_names)])
         scale = layout_x.scale(np.concatenate([values, extra_values]), x_fit)
+        track_p = np.outer(scale, scale) * (0.0 if track_cov is None else track_cov)
         jac, scale = relative_to_nominal(fit.jac, scale, fit.phi[: k + len(extra_names)])
         cov, gn, width = _covariance(jac, fit.r, layout, n_bias, sigma2, kind, bandwidth, scale)
+        se_residual = np.asarray(cov.std_errors)
+        if track_cov is not None:
+            cov = with_model_error(cov, track_p)
+        se_track = np.sqrt(np.maximum(np.diag(track_p), 0.0))
         se_all, se_gn = np.asarray(cov.std_errors), np.asarray(gn.std_errors)
         se, se_extra = se_all[:k], se_all[k:]
         fitted_nuisance = {
@@ -457,6 +506,8 @@ def _verdicts(
                 fit_status=fit.status,
                 covariance=kind,
                 std_error_gauss_newton=float(err_gn),
+                std_error_track_record=float(se_track[j]),
+                std_error_residuals=float(se_residual[j]),
             )
             if not active.all():
                 v.evidence["note"] = f"judged on {used}: see the runs left out"

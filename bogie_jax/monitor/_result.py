@@ -60,7 +60,9 @@ class FitSummary:
     sensor's assumed `noise_std` (degrees of freedom corrected; 1: the assumed noise is
     right); `run_corrections`: whether each run's track position and speed were fitted (the
     values are in `MonitorResult.runs`); `nuisance`: the parameters fitted but not judged,
-    `{name: {"estimate", "std_error", "nominal", "unit"}}`."""
+    `{name: {"estimate", "std_error", "nominal", "unit"}}`; `track_error` [m]: the track
+    records' error RMS in the covariance and `track_error_draws` its realisations used (0:
+    records taken as exact)."""
 
     names: tuple[str, ...]
     status: str
@@ -81,6 +83,8 @@ class FitSummary:
     channel_noise: tuple[tuple[float, ...], ...] = ()
     run_corrections: bool = False
     nuisance: dict = dataclasses.field(default_factory=dict)
+    track_error: float = 0.0
+    track_error_draws: int = 0
 
 
 @dataclasses.dataclass(frozen=True)

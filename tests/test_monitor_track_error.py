@@ -1,0 +1,113 @@
+"""The track records' error as a model-error term (issue 19, item 4a;
+`bogie_jax/monitor/_track_error.py`), against numpy oracles on a linear model (no
+simulation): the error realisations' level and spectrum, and the Monte Carlo covariance of the
+estimates' shift against its closed form. `monitor` with the term on runs in tests/test_monitor.py
+(through the demo, which shares that module's compiled programs).
+"""
+
+import numpy as np
+import pytest
+
+from bogie_jax.cost import covariance_from_jacobian, with_model_error
+from bogie_jax.monitor import record_error, track_error_covariance
+from bogie_jax.track import TrackIrregularity
+
+
+SEMI = 0.7465  # [m] contact semi-distance b_0
+
+
+def _record(rng, n):
+    """A red (track-like) record of n samples: cumulated white noise, three channels."""
+    return np.cumsum(rng.standard_normal((n, 3)), axis=0) * np.array([1e-4, 2e-4, 1e-4])
+
+
+def test_record_error_has_the_level_and_the_spectrum_of_the_model():
+    rng = np.random.default_rng(0)
+    values = _record(rng, 400)
+    rms = 3e-4
+    e = record_error(values, rms, SEMI, rng)
+    np.testing.assert_allclose(
+        np.sqrt(np.mean(e**2, axis=0)), [rms, rms, rms / (2 * SEMI)], rtol=1e-12
+    )
+    # the record's amplitude spectrum (mean removed), scaled per channel; new phases
+    s_rec = np.abs(np.fft.rfft(values - values.mean(axis=0), axis=0))
+    s_err = np.abs(np.fft.rfft(e, axis=0))
+    ratio = s_err[1:] / s_rec[1:]
+    np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0], ratio.shape), rtol=1e-9)
+    assert abs(np.corrcoef(e[:, 0], values[:, 0] - values[:, 0].mean())[0, 1]) < 0.5
+    # a channel that is zero throughout gets no error
+    flat = values.copy()
+    flat[:, 2] = 0.0
+    assert np.all(record_error(flat, rms, SEMI, rng)[:, 2] == 0.0)
+
+
+def test_covariance_of_the_shift_matches_its_closed_form():
+    """Linear model: residuals r = y - A v - G e for a record error e (n_s samples x 3
+    channels, flattened). Oracle: the shift dv = A^+ G e has covariance A^+ G S G^T A^+T, S the
+    covariance of the phase-randomised error: circulant per channel with autocovariance
+    c(tau) = (1 / n^2) sum_k |X_k|^2 cos(2 pi k tau / n) of the record's spectrum X, scaled to
+    the channel's RMS (odd n: no Nyquist term). 2000 draws: the relative error of a variance
+    estimate is about sqrt(2 / 2000) = 3 %; held to 4 times that."""
+    rng = np.random.default_rng(1)
+    n_s, m, n = 61, 150, 3
+    values = _record(rng, n_s)
+    track = TrackIrregularity(0.0, 0.5, values)
+    a = rng.standard_normal((m, n))
+    g = rng.standard_normal((m, 3 * n_s)) * 1e3
+    y = rng.standard_normal(m)
+
+    def residuals_with(tracks):
+        e = np.asarray(tracks[0].values) - values
+        return y - g @ e.reshape(-1)
+
+    rms, draws = 3e-4, 2000
+    got, used = track_error_covariance(
+        residuals_with, [track], a, rms=rms, semi_distance=SEMI, draws=draws, seed=3
+    )
+    assert used == draws
+    target = np.array([rms, rms, rms / (2 * SEMI)])
+    x = np.fft.fft(values - values.mean(axis=0), axis=0)
+    lag = np.arange(n_s)
+    auto = (np.abs(x) ** 2).T @ np.cos(2 * np.pi * np.outer(np.arange(n_s), lag) / n_s) / n_s**2
+    auto *= (target**2 / auto[:, 0])[:, None]  # (3, n_s): scaled to the channel's variance
+    cov_e = np.zeros((3 * n_s, 3 * n_s))
+    for c in range(3):
+        idx = np.arange(n_s) * 3 + c  # row-major (sample, channel) flattening
+        cov_e[np.ix_(idx, idx)] = auto[c][np.abs(np.subtract.outer(lag, lag)) % n_s]
+    pinv = np.linalg.pinv(a)
+    expected = pinv @ g @ cov_e @ g.T @ pinv.T
+    np.testing.assert_allclose(np.diag(got), np.diag(expected), rtol=0.12)
+    assert np.all(np.diag(expected) > 0)
+
+
+def test_a_failed_draw_is_left_out():
+    rng = np.random.default_rng(2)
+    values = _record(rng, 41)
+    track = TrackIrregularity(0.0, 0.5, values)
+    calls = {"n": 0}
+
+    def residuals_with(tracks):
+        calls["n"] += 1
+        r = np.full(10, float(np.sum(np.asarray(tracks[0].values) - values)))
+        return r if calls["n"] != 3 else np.full(10, np.inf)  # draw 2 fails
+
+    cov, used = track_error_covariance(
+        residuals_with, [track], np.eye(10)[:, :2], rms=1e-4, semi_distance=SEMI, draws=5
+    )
+    assert used == 4 and cov.shape == (2, 2) and np.all(np.isfinite(cov))
+
+
+def test_model_error_adds_to_the_covariance():
+    rng = np.random.default_rng(4)
+    jac = rng.standard_normal((50, 3))
+    jac[:, 2] = jac[:, 0]  # a null direction: parameter 0 and 2 loose
+    base = covariance_from_jacobian(jac, scale=np.array([2.0, 3.0, 4.0]))
+    extra = np.diag([1.0, 0.5, 2.0])
+    out = with_model_error(base, extra)
+    np.testing.assert_allclose(
+        np.asarray(out.covariance), np.asarray(base.covariance) + extra, rtol=1e-12
+    )
+    se = np.asarray(out.std_errors)
+    assert np.isinf(se[0]) and np.isinf(se[2])
+    assert se[1] == pytest.approx(np.sqrt(float(base.covariance[1, 1]) + 0.5), rel=1e-12)
+    assert int(out.rank) == int(base.rank) == 2
