@@ -255,6 +255,9 @@ def test_levenberg_marquardt_stops_at_a_small_relative_offset():
 # ------------------------------------------------------------------------------------------
 
 
+@pytest.mark.heavy  # two programs of their own (about 65 s); in the default suite the joint
+# model is held to single-run objectives by tests/test_run_corrections.py
+# (`test_joint_corrections_equal_the_shifted_rescaled_runs`: vmapped, with corrections)
 def test_joint_residuals_are_the_single_runs_concatenated(yaw_left_50, nominal):
     """Oracle: the single-run objectives of `make_objective`, evaluated one by one."""
     names = ("yaw_dampers.left.c", "primary.1L.kz")
