@@ -96,7 +96,7 @@ class MonitorResult:
     - `elements`: the identifiability of every candidate (`ElementStatus`);
     - `fit`: `FitSummary`; `runs`: `RunStatus` per measurement; `false_alarm_rate`;
     - `timings` [s]: `first_jacobian_s` (compile and first evaluation of the residual-Jacobian
-      program), `fit_s`, `total_s`.
+      program), `fit_s`, `track_error_s` (with a `track_error`), `verdicts_s`, `total_s`.
     """
 
     verdicts: tuple[Verdict, ...]
