@@ -51,6 +51,8 @@ Run (from the repository root):
     python benchmarks/detection.py --imperfection speed        # 30 cases, one imperfection
     python benchmarks/detection.py --shard 0/2 --workers 16    # half the cases (other: 1/2)
     python benchmarks/detection.py --report                    # tables from the records only
+    python benchmarks/detection.py --track-error 0.3 --out detection_track_error
+                                                # the records' 0.3 mm error in the intervals
 Writes results/<out>.json (records + aggregates + environment) and results/<out>.md; <out>
 is `detection` for the default imperfections, else `detection_<imperfections>`.
 """
