@@ -505,7 +505,13 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
         f"{cfg['sample_rate_hz']:g} Hz, speeds {cfg['speed_range_m_s'][0]:g}-"
         f"{cfg['speed_range_m_s'][1]:g} m/s, noise {100 * cfg['noise_range'][0]:g}-"
         f"{100 * cfg['noise_range'][1]:g} % of each channel's RMS, false-alarm rate "
-        f"{cfg['false_alarm_rate']:g}; {len(failed)} cases failed to run.",
+        f"{cfg['false_alarm_rate']:g}"
+        + (
+            f", the records' {cfg['track_error_mm']:g} mm error given to `monitor` (`track_error`)"
+            if cfg.get("track_error_mm")
+            else ""
+        )
+        + f"; {len(failed)} cases failed to run.",
         "",
         "| defect | cases | detected | correct element (of detected) | wrong-element alarms | "
         "size MAE [%] | 95 % coverage | median s |",
