@@ -152,14 +152,9 @@ def config_of(args) -> dict:
         "bias_fraction": args.bias,
         "max_wear": args.max_wear,
         "false_alarm_rate": args.false_alarm_rate,
-        **({"track_error_mm": track_error_mm(args)} if track_error_mm(args) else {}),
+        # only when given: records written before the option existed keep their configuration
+        **({"track_error_mm": float(args.track_error)} if args.track_error else {}),
     }
-
-
-def track_error_mm(args) -> float:
-    """The track records' error RMS [mm] `monitor` is told (`--track-error`; 0: none, and the
-    configuration of the records written before the option existed)."""
-    return float(args.track_error)
 
 
 def draw_case(cfg: dict, index: int) -> dict:

@@ -210,12 +210,17 @@ def monitor(
     settings = (SolveSettings.for_objective() if settings is None else settings).replace(
         throw=False
     )
-    objective = make_joint_objective(
-        measurements, params, tracks, names + extra_names, options=options, settings=settings,
-        weights=weights,
-    ).forward_mode()  # fmt: skip
-    if run_corrections:
-        objective = objective.with_run_corrections()
+
+    def joint_objective(records):
+        """The runs' joint objective on these track records (same structure for any records of
+        the same shapes: one compiled Jacobian program)."""
+        joint = make_joint_objective(
+            measurements, params, records, names + extra_names, options=options,
+            settings=settings, weights=weights,
+        ).forward_mode()  # fmt: skip
+        return joint.with_run_corrections() if run_corrections else joint
+
+    objective = joint_objective(tracks)
     n_runs = len(measurements)
     active = np.ones(n_runs, dtype=bool)
     reasons = [""] * n_runs
@@ -358,13 +363,8 @@ def monitor(
         say(f"track record error {1e3 * track_error:.3g} mm: {track_error_draws} realisations")
 
         def residuals_with(records):
-            perturbed = make_joint_objective(
-                measurements, params, records, names + extra_names, options=options,
-                settings=settings, weights=weights,
-            ).forward_mode()  # fmt: skip
-            if run_corrections:
-                perturbed = perturbed.with_run_corrections()
-            r, _ = jax.block_until_ready(_JACOBIAN(with_active(perturbed), jnp.asarray(x_fit)))
+            perturbed = with_active(joint_objective(records))
+            r, _ = jax.block_until_ready(_JACOBIAN(perturbed, jnp.asarray(x_fit)))
             return project(np.asarray(r)) * rows
 
         track_cov, draws_used = track_error_covariance(
