@@ -34,7 +34,8 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal,
 track_error=<the records' error RMS, --track-error>)`, default arguments otherwise): truth,
-verdicts, estimates, standard errors, 95 % intervals, fit status, wall times; each finished
+verdicts, estimates (and, with a track error, the fitted values before its bias is removed),
+standard errors, 95 % intervals, fit status, wall times; each finished
 case is appended as one line of `results/<out>.jsonl` (per shard: `<out>.shard<i>of<n>.jsonl`)
 and a re-run skips the cases found there.
 
@@ -51,8 +52,10 @@ Run (from the repository root):
     python benchmarks/detection.py --imperfection speed        # 30 cases, one imperfection
     python benchmarks/detection.py --shard 0/2 --workers 16    # half the cases (other: 1/2)
     python benchmarks/detection.py --report                    # tables from the records only
-    python benchmarks/detection.py --track-error 0.3 --out detection_track_error
-                                                # the records' 0.3 mm error in the intervals
+    python benchmarks/detection.py --track-error 0.3 --out detection_track_bias
+                        # the records' 0.3 mm error in the intervals, its bias removed
+                        # (results/detection_track_error.*: the same at b2235ac, before the
+                        # bias removal)
 Writes results/<out>.json (records + aggregates + environment) and results/<out>.md; <out>
 is `detection` for the default imperfections, else `detection_<imperfections>`.
 """
@@ -264,6 +267,7 @@ def run_case(cfg: dict, index: int) -> dict:
             "std_error_gauss_newton": v.evidence.get("std_error_gauss_newton"),
             "std_error_track_record": v.evidence.get("std_error_track_record"),
             "std_error_residuals": v.evidence.get("std_error_residuals"),
+            "estimate_fitted": v.evidence.get("estimate_fitted"),
         }
         for v in result.verdicts
     ]

@@ -187,6 +187,8 @@ def direct(measurements, nominal, records):
     return out
 
 
+@pytest.mark.heavy  # a program of its own (about 40 s): the joint test below applies each
+# run's corrections through the same `ResidualModel.with_corrections`
 def test_single_run_corrections_equal_the_shifted_rescaled_run(
     measurements, nominal, records, direct
 ):

@@ -59,8 +59,9 @@ from ._robust import (
     leverage as leverage,
 )
 from ._track_error import (
+    TrackErrorEffect as TrackErrorEffect,
     record_error as record_error,
-    track_error_covariance as track_error_covariance,
+    track_error_effect as track_error_effect,
 )
 from ._trend import Trend as Trend, trend as trend, two_sided_p_value as two_sided_p_value
 from ._verdict import (
