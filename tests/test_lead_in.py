@@ -83,8 +83,8 @@ def _asymmetric(nominal):
 
 
 @pytest.fixture(scope="module", params=SPEEDS, ids=lambda v: f"{v:g}mps")
-def fits(request, nominal, track):
-    """Per speed: the window, the two objectives and the fits from +10 % (noise-free data)."""
+def windows(request, nominal, track):
+    """Per speed: the window (noise-free data) and its objectives with and without lead-in."""
     speed = request.param
     run = synthetic_measurement(
         nominal, track, speed=speed, duration=RUN, sample_rate=RATE,
@@ -94,20 +94,32 @@ def fits(request, nominal, track):
     settings = SolveSettings.for_objective(**_fixed_step())
     with_lead_in = make_objective(window, nominal, track, NAMES, settings=settings)
     at_rest = make_objective(window, nominal, track, NAMES, settings=settings, lead_in=0.0)
-    truth = np.asarray(with_lead_in.selection.nominal)
-    start = 1.1 * truth
     return dict(
         speed=speed,
         window=window,
-        truth=truth,
+        truth=np.asarray(with_lead_in.selection.nominal),
         lead_in=float(with_lead_in.residual_model.lead_in),
+        objectives=(with_lead_in, at_rest),
+    )
+
+
+@pytest.fixture(scope="module")
+def fits(windows):
+    """The fits from +10 % with and without the lead-in (one compiled fit program, about
+    100 s of the suite's CPU: the two tests using them are heavy, README "Tests"; by default
+    `test_monitor.py::test_monitor_on_windows_cut_from_moving_runs` fits windows cut from
+    moving runs, with the default lead-in)."""
+    with_lead_in, at_rest = windows["objectives"]
+    start = 1.1 * windows["truth"]
+    return dict(
+        windows,
         fit=fit(with_lead_in, start, max_steps=FIT_STEPS, throw=False),
         fit_at_rest=fit(at_rest, start, max_steps=FIT_STEPS, throw=False),
     )
 
 
-def test_window_records_its_track_position(fits):
-    window, speed = fits["window"], fits["speed"]
+def test_window_records_its_track_position(windows):
+    window, speed = windows["window"], windows["speed"]
     assert float(window.start_position) == pytest.approx(speed * T_START, rel=1e-12)
     assert window.times.shape == (round(WINDOW * RATE) + 1,)
     assert float(window.times[0]) == pytest.approx(T_START, abs=1e-12)
@@ -115,9 +127,10 @@ def test_window_records_its_track_position(fits):
         np.asarray(window.positions), speed * np.asarray(window.times), rtol=1e-12
     )
     # the default lead-in is the whole known track before the window (default > start)
-    assert fits["lead_in"] == pytest.approx(speed * T_START, rel=1e-12)
+    assert windows["lead_in"] == pytest.approx(speed * T_START, rel=1e-12)
 
 
+@pytest.mark.heavy
 def test_fit_with_lead_in_identifies_the_truth(fits):
     result = fits["fit"]
     rel = np.abs(np.asarray(result.estimates) / fits["truth"] - 1)
@@ -127,6 +140,7 @@ def test_fit_with_lead_in_identifies_the_truth(fits):
     assert not np.any(result.on_bound)  # log-scale parameters have no box to sit on
 
 
+@pytest.mark.heavy
 def test_fit_without_lead_in_is_biased(fits):
     """Started at rest at the window's first sample, while the data's bogie was moving."""
     result = fits["fit_at_rest"]
