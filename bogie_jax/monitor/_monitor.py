@@ -386,14 +386,14 @@ def monitor(
             max_steps=max_steps,
         )  # fmt: skip
 
-    n_log = len(coords) + len(extra_names)
-    x_hat = x_fit
+    x_hat, estimate = x_fit, None
     if fit is not None:
-        x_hat = layout_x.matrix(a) @ _corrected(fit, track_effect, n_log)[0]
+        estimate = _corrected(fit, track_effect, len(coords) + len(extra_names))
+        x_hat = layout_x.matrix(a) @ estimate[0]
     verdicts, summary, se_extra = _verdicts(
         coords, statuses, fit, fits, bands, used, n_bias, noise, kind, bandwidth,
         false_alarm_rate, active, n_runs, s2_channels, remove_bias, reweights,
-        layout_x, x_hat, params, extra_names, profile_at, track_effect,
+        layout_x, x_hat, params, extra_names, profile_at, track_effect, estimate,
     )  # fmt: skip
     timings["verdicts_s"] = time.perf_counter() - t0
     draws_used = 0 if track_effect is None else track_effect.draws
@@ -435,12 +435,11 @@ def monitor(
 
 
 def _corrected(fit, track_effect, n_log):
-    """The fitted coordinates less the track records' bias (`_track_error.py`) and where it was
-    removed: for the first
-    `n_log` (ln p / p_nominal) coordinates where the records' first-order spread in them is
-    under `SIMEX_MAX_SPREAD` and the bias within that spread. A second-order bias extrapolated
-    from one Gauss-Newton step is trusted only there: in ln p the step's own error grows with
-    the spread squared (the detection trial, 24 cases: corrected everywhere, the weakly
+    """The fitted coordinates less the track records' bias (`_track_error.py`), and where it was
+    removed: among the first `n_log` (ln p / p_nominal) coordinates, where the records'
+    first-order spread is under `SIMEX_MAX_SPREAD` and the bias within it. A second-order bias
+    extrapolated from one Gauss-Newton step is trusted only there: in ln p the step's own error
+    grows with the spread squared (the detection trial, 24 cases: corrected everywhere, the weakly
     identified primary dampers, spread about 16 %, moved by -0.3 standard errors on average
     from an unbiased start; the anti-yaw dampers, 6 %, from +0.8 to +0.4; the limit was chosen
     on that trial, and `benchmarks/detection.py` tests it on the other 76 cases). Nuisance
@@ -476,14 +475,14 @@ def _covariance(jac, r, layout, n_nuisance, sigma2, kind, bandwidth, values):
 def _verdicts(
     coords, statuses, fit, fits, bands, layout, n_bias, noise, kind, bandwidth, alpha, active,
     n_runs, s2_channels, remove_bias, reweights, layout_x, x_hat, params, extra_names,
-    profile_at, track_effect,
+    profile_at, track_effect, estimate,
 ):  # fmt: skip
     """Verdicts, the `FitSummary` and the standard errors of the fitted nuisance coordinates
     (parameters' values, offsets [m], speed factors); `profile_at(index, phi_limit, sigma2,
     variance_ratio) -> ProfilePoint`: the profile test of a fitted coordinate; `track_effect`:
-    the track records' error in the fitted coordinates (`TrackErrorEffect`), or `None`. With
-    it, the estimates are the fit's less the records' bias, and a profile test of an estimate
-    at a limit holds the fitted coordinate at the limit plus that bias."""
+    the track records' error in the fitted coordinates (`TrackErrorEffect`), or `None`;
+    `estimate`: `_corrected`'s coordinates and mask (`None` without a fit). A profile test of
+    an estimate at a limit holds the fitted coordinate at the limit plus the removed bias."""
     used = f"{int(active.sum())} of {n_runs} runs"
     se_extra = np.zeros(0)
     verdicts = []
@@ -500,7 +499,7 @@ def _verdicts(
         s2 = 2 * fit.cost / dof if dof > 0 else float("nan")
         sigma2 = {"nominal": 1.0, "estimated": s2, "max": max(1.0, s2), "per-channel": s2}[noise]
         k = len(coords)
-        phi, corrected = _corrected(fit, track_effect, k + len(extra_names))
+        phi, corrected = estimate
         shift = fit.phi - phi  # the records' bias, removed from the estimates
         nominal_extra = nominal_values(params, extra_names)
         values = np.array([c.nominal for c in coords]) * np.exp(phi[:k])
