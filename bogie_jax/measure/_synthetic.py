@@ -26,11 +26,15 @@ def sensor_readings(sensors, model: BogieModel, ts, q, qd, qdd):
     """Noise-free readings (n_times, n_sensors) of `sensors` (bias included) at times `ts` [s]
     for coordinates `q`, rates `qd` and accelerations `qdd` (n_times, 10) of the run `model`."""
 
-    def at(t, q_, qd_, qdd_):
-        state = sample_state(model, t, q_, qd_, qdd_)
-        return jnp.stack([s.read(model, state) + s.bias for s in sensors])
+    return jax.vmap(_readings_at, in_axes=(None, None, 0, 0, 0, 0))(sensors, model, ts, q, qd, qdd)
 
-    return jax.vmap(at)(ts, q, qd, qdd)
+
+@eqx.filter_jit
+def _readings_at(sensors, model, t, q, qd, qdd):
+    """The readings (n_sensors,) at one time; a `jit` of its own (traced once, as
+    `bogie_jax.model.accelerations`)."""
+    state = sample_state(model, t, q, qd, qdd)
+    return jnp.stack([s.read(model, state) + s.bias for s in sensors])
 
 
 def readings_from_states(sensors, model: BogieModel, ts, q, qd):

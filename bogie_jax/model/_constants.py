@@ -36,8 +36,10 @@ class ModelConstants(eqx.Module):
     creep: CreepCoefficients
 
 
+@eqx.filter_jit
 def model_constants(params: BogieParams) -> ModelConstants:
-    """Derive the `ModelConstants` of `params` (pure, differentiable)."""
+    """Derive the `ModelConstants` of `params` (pure, differentiable; a `jit` of its own, traced
+    once per program as `accelerations`)."""
     c = params.contact
     m = params.masses
     geometry = cone_geometry(

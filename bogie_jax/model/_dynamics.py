@@ -110,8 +110,15 @@ def _inertia_blocks(model: BogieModel, q, qd, w, wd, wdd):
     return (frame_m, frame_h), (ws_m, ws_h)
 
 
+@eqx.filter_jit
 def accelerations(model: BogieModel, t, q, qd):
-    """Generalised accelerations q_ddot (10,) from the equations of motion."""
+    """Generalised accelerations q_ddot (10,) from the equations of motion.
+
+    A `jit` of its own, also inside other programs: JAX then traces it once per argument
+    signature and reuses the jaxpr (and its derivative and batching rules) at every call site
+    (ODE stages, static equilibrium, sampled accelerations) instead of tracing it again at
+    each. XLA inlines it, so the compiled program and its results are unchanged; only tracing,
+    which the persistent compilation cache cannot save, gets shorter."""
     w, wd, wdd = track_inputs(model, t)
     p = model.params
     suspension, f = _suspension_forces(model, q, qd, w, wd)

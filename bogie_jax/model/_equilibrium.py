@@ -130,6 +130,7 @@ def _solve(a, b):
     return back_substitute(*triangularise(a, b))
 
 
+@eqx.filter_jit
 def static_equilibrium_solve(
     params: BogieParams,
     *,
@@ -148,7 +149,8 @@ def static_equilibrium_solve(
     docstring); derivatives of q0 by the implicit function theorem, dq0/dp =
     -(da/dq)^-1 da/dp, in forward and reverse mode (the linear solves by Householder QR in
     `jax.lax.custom_linear_solve`), without differentiating the iterations. Works inside
-    `vmap` and `shard_map` (no LAPACK call) with `throw=False`."""
+    `vmap` and `shard_map` (no LAPACK call) with `throw=False`. A `jit` of its own (traced
+    once per program, as `accelerations`)."""
     dynamic, static = eqx.partition(params, eqx.is_inexact_array)
     fixed = eqx.combine(jax.lax.stop_gradient(dynamic), static)
     q, jac, steps, converged, solvable = _newton(_rest_model(fixed, options), rtol, atol, max_steps)
