@@ -14,6 +14,7 @@ linear solve, ODE solver, optimiser loop, ...). Small parts are also compiled on
     python benchmarks/compile.py --label now
     python benchmarks/compile.py --repo /path/to/older/checkout --label before
     python benchmarks/compile.py --label x --programs residuals3,jacfwd3
+    python benchmarks/compile.py --label x --no-run        # trace, lower and compile only
     python benchmarks/compile.py --compare before,now
 
 Writes `results/compile_LABEL.json` and `.md` (`results/compile_A_vs_B.md` for `--compare`).
@@ -347,9 +348,11 @@ def timed(fn):
     return out, time.perf_counter() - wall, time.process_time() - cpu
 
 
-def run_times(compiled, args, budget: float) -> dict:
-    """First call, then up to 5 more within about `budget` seconds: their median."""
-
+def run_times(compiled, args, budget: float | None) -> dict:
+    """First call, then up to 5 more within about `budget` seconds: their median (nothing run
+    where `budget` is None: `--no-run`)."""
+    if budget is None:
+        return {"run_first_s": None, "run_s": None, "run_calls": None}
     call = lambda: jax.block_until_ready(compiled(*args))
     _, first, _ = timed(call)
     repeats = max(0, min(5, int(budget / max(first, 1e-6))))
@@ -427,6 +430,7 @@ def run_child(name: str, args) -> dict:
         out = Path(tmp) / "result.json"
         cmd = [sys.executable, str(Path(__file__).resolve()), "--child", name, "--result", str(out)]
         cmd += ["--run-budget", str(args.run_budget)] + (["--repo", args.repo] if args.repo else [])
+        cmd += ["--no-run"] if args.no_run else []
         tic = time.perf_counter()
         try:
             proc = subprocess.run(
@@ -581,15 +585,15 @@ def compare(labels: str) -> None:
     value = lambda r, k: r[k] if r is not None and r.get("ok") else None
     ratio = lambda x, y: "-" if not x or y is None else f"{y / x:.2f}"
     rows = [
-        f"| program | compile s {a} | {b} | ratio | compile cpu s {a} | {b} | ratio "
-        f"| HLO {a} | {b} | ratio | run ms {a} | {b} | ratio |",
-        "| --- |" + " ---: |" * 12,
+        f"| program | trace s {a} | {b} | ratio | compile s {a} | {b} | ratio "
+        f"| compile cpu s {a} | {b} | ratio | HLO {a} | {b} | ratio | run ms {a} | {b} | ratio |",
+        "| --- |" + " ---: |" * 15,
     ]
     for name in [*ra, *(n for n in rb if n not in ra)]:
         x, y = ra.get(name), rb.get(name)
         cells = []
-        keys = ("compile_s", "compile_cpu_s", "hlo_instructions", "run_s")
-        for key, scale in zip(keys, (1.0, 1.0, 1.0, 1e3)):
+        keys = ("trace_s", "compile_s", "compile_cpu_s", "hlo_instructions", "run_s")
+        for key, scale in zip(keys, (1.0, 1.0, 1.0, 1.0, 1e3)):
             u, v = value(x, key), value(y, key)
             digits = 0 if key == "hlo_instructions" else 1
             cells += [fmt(u, scale, digits), fmt(v, scale, digits), ratio(u, v)]
@@ -606,6 +610,7 @@ def main() -> None:
     parser.add_argument("--repo", default=None, help="checkout whose bogie_jax is measured")
     parser.add_argument("--timeout", type=float, default=900.0, help="per program [s]")
     parser.add_argument("--run-budget", type=float, default=20.0, help="timed calls [s]")
+    parser.add_argument("--no-run", action="store_true", help="trace, lower, compile; no calls")
     parser.add_argument("--compare", default=None, help="A,B: merge two labels")
     parser.add_argument("--render", action="store_true", help="rewrite LABEL's .md from its .json")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
@@ -614,7 +619,7 @@ def main() -> None:
     if args.repo:
         args.repo = str(Path(args.repo).resolve())
     if args.child:
-        return child(args.child, args.result, args.repo, args.run_budget)
+        return child(args.child, args.result, args.repo, None if args.no_run else args.run_budget)
     if args.compare:
         return compare(args.compare)
     if args.render:

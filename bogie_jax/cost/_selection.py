@@ -58,8 +58,10 @@ class ParameterSelection(eqx.Module):
         u0 = jnp.where(log, 0.5, (self.nominal - lo) / span)
         return log, lo, span, jnp.log(u0) - jnp.log1p(-u0)
 
+    @eqx.filter_jit
     def to_physical(self, theta) -> Float[Array, " n"]:
-        """Physical values (in `units`) for unconstrained `theta` (n,)."""
+        """Physical values (in `units`) for unconstrained `theta` (n,). A `jit` of its own: called
+        from Python (reporting, starts, records) it compiles once instead of once per operation."""
         log, lo, span, logit0 = self._logistic_parts()
         theta = jnp.asarray(theta)
         # double-where: each branch sees only its own (safe) entries, so no inf/NaN in gradients
@@ -67,8 +69,10 @@ class ParameterSelection(eqx.Module):
         by_logistic = lo + span * jax.nn.sigmoid(jnp.where(log, 0.0, theta) + logit0)
         return jnp.where(log, by_log, by_logistic)
 
+    @eqx.filter_jit
     def to_theta(self, physical) -> Float[Array, " n"]:
-        """Unconstrained coordinates of `physical` values (n,), strictly inside the bounds."""
+        """Unconstrained coordinates of `physical` values (n,), strictly inside the bounds (a `jit`
+        of its own, as `to_physical`)."""
         log, lo, span, logit0 = self._logistic_parts()
         p = jnp.asarray(physical)
         ratio = jnp.where(log, p / self.nominal, 1.0)

@@ -16,6 +16,7 @@ import collections
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..batch import batch_runner
 from ._annealing import anneal_theta
@@ -71,7 +72,8 @@ class BatchedFits:
         n = thetas.shape[0]
         dynamic = eqx.partition(objective, eqx.is_array)[0]
         if not stacked:
-            dynamic = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), dynamic)
+            # on the host: a device broadcast would compile a program per leaf
+            dynamic = jax.tree.map(lambda x: np.broadcast_to(x, (n, *np.shape(x))), dynamic)
         if self.queued:
             return thetas, dynamic
         if keys is None:

@@ -148,7 +148,7 @@ def _outputs_from_records(records: list[dict]) -> BatchResult:
 
 
 def _concat(batches: list[BatchResult]) -> BatchResult:
-    return jax.tree.map(lambda *xs: jnp.concatenate([jnp.asarray(x) for x in xs]), *batches)
+    return jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *batches)
 
 
 class _BestJacobian:
@@ -213,7 +213,7 @@ def fit_multistart_chunked(
     """
     tic = time.perf_counter()
     batched, problem = problem, as_problem(problem)  # batched_fits takes the objective itself
-    thetas = design_starts(problem, key, n_starts, design)
+    thetas = np.asarray(design_starts(problem, key, n_starts, design))
     starts = np.asarray(jax.vmap(problem.transform.to_physical)(thetas))
     chunk = chunk or 2 * jax.device_count()
     if chunk < 1:
@@ -235,15 +235,16 @@ def fit_multistart_chunked(
             if on_compile is not None:
                 on_compile(width)
             t0 = time.perf_counter()
-            runner.compile(batched, thetas[jnp.asarray(todo[:width])])
+            runner.compile(batched, thetas[todo[:width]])
             compile_time = time.perf_counter() - t0
         t_run = time.perf_counter()
         for k in range(math.ceil(len(todo) / chunk)):
             idx = todo[k * chunk : (k + 1) * chunk]
             padded = idx + [idx[-1]] * (width - len(idx))
-            batch = runner(batched, thetas[jnp.asarray(padded)])
-            batch = jax.tree.map(lambda x: x[: len(idx)], batch)
-            records = _chunk_records(problem, thetas[jnp.asarray(idx)], batch)
+            batch = runner(batched, thetas[padded])
+            # on the host from here: slicing device arrays would compile a program per leaf
+            batch = jax.tree.map(lambda x: np.asarray(x)[: len(idx)], batch)
+            records = _chunk_records(problem, thetas[idx], batch)
             if path is not None:
                 _append(path, idx, records, batch.outputs[0])
             pieces.append((idx, best_jacobian.update(idx, batch)))
@@ -264,7 +265,7 @@ def fit_multistart_chunked(
         merged = jax.tree.map(lambda x: x[order], _concat([b for _, b in pieces]))
         result = collect(
             problem,
-            thetas[jnp.asarray(indices)],
+            thetas[indices],
             merged,
             time.perf_counter() - tic,
             cluster_tol=cluster_tol,

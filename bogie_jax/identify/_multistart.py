@@ -47,10 +47,16 @@ class LatinHypercube(AbstractDesign):
     margin: float = 1e-6
 
     def sample(self, key, n, dim):
-        perm_key, jitter_key = jr.split(key)
-        perms = jax.vmap(lambda k: jr.permutation(k, n))(jr.split(perm_key, dim)).T
-        u = (perms + jr.uniform(jitter_key, (n, dim))) / n
-        return np.asarray(self.margin + (1.0 - 2.0 * self.margin) * u)
+        return np.asarray(_latin_hypercube(key, n, dim, self.margin))
+
+
+@eqx.filter_jit
+def _latin_hypercube(key, n: int, dim: int, margin: float):
+    """(n, dim) points in [margin, 1 - margin], one program (not one per operation)."""
+    perm_key, jitter_key = jr.split(key)
+    perms = jax.vmap(lambda k: jr.permutation(k, n))(jr.split(perm_key, dim)).T
+    u = (perms + jr.uniform(jitter_key, (n, dim))) / n
+    return margin + (1.0 - 2.0 * margin) * u
 
 
 class Sobol(AbstractDesign):
