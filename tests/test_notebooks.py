@@ -12,9 +12,9 @@ from nbclient import NotebookClient
 NOTEBOOKS = sorted((Path(__file__).parents[1] / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT = 900  # [s] one cell; a whole notebook should take under 3 minutes (README)
 # Run with `pytest -m heavy` (README, "Tests"): 03 is over its 3-minute budget (200 s measured
-# 2026-11-26, compile-bound); 01, 04 and 05 are within it (147 s and 142 s measured 2026-11-23,
-# 121 s 2026-11-26) but left out of the default suite to keep it under 20 minutes; 02 (79 s)
-# is the default suite's kernel run.
+# 2026-11-26, compile-bound); 01 (147 s, 2026-11-23), 04 (121 s, 2026-11-26) and 05 (142 s,
+# 2026-11-23) are within it but left out of the default suite to keep it under 20 minutes;
+# 02 (79 s) is the default suite's kernel run.
 HEAVY = {
     "01_forward_model_and_hunting.ipynb",
     "03_gradients.ipynb",
