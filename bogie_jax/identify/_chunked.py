@@ -16,7 +16,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..batch import BatchResult
@@ -135,16 +134,16 @@ def _read_record(path: Path, starts_physical: np.ndarray) -> dict[int, dict]:
 
 
 def _outputs_from_records(records: list[dict]) -> BatchResult:
-    """The batch outputs `(LocalOutput, cost)` of recorded starts."""
+    """The batch outputs `(LocalOutput, cost)` of recorded starts (on the host, as the run's)."""
     out = LocalOutput(
-        theta=jnp.asarray([r["theta"] for r in records], float),
+        theta=np.asarray([r["theta"] for r in records], float),
         result=results_from_names([r["status"] for r in records]),
-        num_steps=jnp.asarray([r["num_steps"] for r in records]),
-        num_fn_evals=jnp.asarray([r["num_fn_evals"] for r in records]),
-        num_jac_evals=jnp.asarray([r["num_jac_evals"] for r in records]),
+        num_steps=np.asarray([r["num_steps"] for r in records]),
+        num_fn_evals=np.asarray([r["num_fn_evals"] for r in records]),
+        num_jac_evals=np.asarray([r["num_jac_evals"] for r in records]),
     )
-    costs = jnp.asarray([r["cost"] for r in records], float)
-    return BatchResult(outputs=(out, costs), failed=jnp.asarray([r["failed"] for r in records]))
+    costs = np.asarray([r["cost"] for r in records], float)
+    return BatchResult(outputs=(out, costs), failed=np.asarray([r["failed"] for r in records]))
 
 
 def _concat(batches: list[BatchResult]) -> BatchResult:

@@ -359,17 +359,17 @@ def monitor(
     kind = covariance or ("gauss-newton" if track_error > 0 else "sandwich")
     used = layout()
     layout_x = nuis()
-    x_fit = layout_x.matrix(a) @ fit.phi if fit is not None else np.zeros(layout_x.n_x)
+    to_x = layout_x.matrix(a)  # fitted coordinates -> nuisance layout x
+    x_fit = to_x @ fit.phi if fit is not None else np.zeros(layout_x.n_x)
     t0 = time.perf_counter()
     track_effect = None
     if track_error > 0 and fit is not None and fit.status != "failed":
         say(f"track record error {1e3 * track_error:.3g} mm: {track_error_draws} realisations")
-        b = layout_x.matrix(a)
 
         def evaluate_with(records):
             perturbed = with_active(joint_objective(records))
             r, jac = jax.block_until_ready(_JACOBIAN(perturbed, jnp.asarray(x_fit)))
-            jac = project(np.asarray(jac) @ b)
+            jac = project(np.asarray(jac) @ to_x)
             return project(np.asarray(r)) * rows, jac * rows[:, None]
 
         track_effect = track_error_effect(
@@ -389,7 +389,7 @@ def monitor(
     x_hat, estimate = x_fit, None
     if fit is not None:
         estimate = _corrected(fit, track_effect, len(coords) + len(extra_names))
-        x_hat = layout_x.matrix(a) @ estimate[0]
+        x_hat = to_x @ estimate[0]
     verdicts, summary, se_extra = _verdicts(
         coords, statuses, fit, fits, bands, used, n_bias, noise, kind, bandwidth,
         false_alarm_rate, active, n_runs, s2_channels, remove_bias, reweights,
