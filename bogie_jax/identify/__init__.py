@@ -39,6 +39,7 @@ from ._local import (
     PatternSearch as PatternSearch,
     as_method as as_method,
     fit as fit,
+    fit_statistics as fit_statistics,
     local_methods as local_methods,
     statistics as statistics,
     t_quantile as t_quantile,
