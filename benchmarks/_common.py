@@ -41,10 +41,13 @@ def median_time(fn, repeats: int = 5) -> tuple[float, list[float]]:
     return float(np.median(times)), times
 
 
-def write_outputs(name: str, records, markdown: str, extra: dict | None = None) -> None:
-    """Write `results/NAME.json` (records + environment) and `results/NAME.md`."""
+def write_outputs(
+    name: str, records, markdown: str, extra: dict | None = None, env: dict | None = None
+) -> None:
+    """Write `results/NAME.json` (records + environment) and `results/NAME.md`. `env`: the
+    environment the records were measured in (default: this process's)."""
     RESULTS.mkdir(parents=True, exist_ok=True)
-    payload = {"environment": environment(), "records": records, **(extra or {})}
+    payload = {"environment": env or environment(), "records": records, **(extra or {})}
     (RESULTS / f"{name}.json").write_text(json.dumps(payload, indent=2))
     (RESULTS / f"{name}.md").write_text(markdown)
     print(markdown)
