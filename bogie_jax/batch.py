@@ -19,6 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import PartitionSpec
 
+from .program_store import stored_program
+
 
 class BatchResult(eqx.Module):
     """Outputs of a batch (leading axis = member) and a per-member failure flag."""
@@ -92,24 +94,41 @@ class BatchRunner:
       lowers it (for inspection, e.g. the compile benchmark).
 
     The programs are kept by JAX's own caches of the jitted function (trace, lowering,
-    compilation), not here: a call after `compile` runs the program compiled ahead.
+    compilation), not here: a call after `compile` runs the program compiled ahead. With an
+    `identity` (a picklable description of everything the program closes over) and the program
+    store on (`bogie_jax.program_store`), the traced program is also kept across processes.
     """
 
-    def __init__(self, jitted: Callable, prepare: Callable, finish: Callable):
+    def __init__(self, jitted: Callable, prepare: Callable, finish: Callable, identity=None):
         self._jitted = jitted  # jax.jit of the whole (sharded) batch
         self._prepare = prepare  # batch -> (device args, layout)
         self._finish = finish  # (program outputs, layout) -> BatchResult
+        self.identity = identity
+
+    def with_identity(self, identity) -> "BatchRunner":
+        """This runner, its program stored under `identity` where the store is on."""
+        return BatchRunner(self._jitted, self._prepare, self._finish, identity)
 
     def program(self, batch) -> tuple[Callable, tuple]:
         return self._jitted, (self._prepare(batch)[0],)
 
     def compile(self, batch) -> None:
         """Compile for batches shaped like `batch` without running (kept for later runs)."""
-        self._jitted.lower(self._prepare(batch)[0]).compile()
+        args = (self._prepare(batch)[0],)
+        stored = stored_program(self._jitted, args, self.identity)
+        if stored is None:
+            self._jitted.lower(*args).compile()
+        else:
+            stored[0].lower(*jax.tree.leaves(args)).compile()
 
     def __call__(self, batch) -> BatchResult:
         args, layout = self._prepare(batch)
-        return self._finish(self._jitted(args), layout)
+        stored = stored_program(self._jitted, (args,), self.identity)
+        if stored is None:
+            return self._finish(self._jitted(args), layout)
+        call, out_tree = stored
+        outputs = jax.tree.unflatten(out_tree, call(*jax.tree.leaves(args)))
+        return self._finish(outputs, layout)
 
 
 def batch_runner(

@@ -29,6 +29,7 @@ LAYERS = {
     "_solve_settings": 3,
     "measure": 4,
     "cost": 5,
+    "program_store": 5,  # batch programs kept across processes (`jax.export`)
     "batch": 5,  # generic batch runners under the identification layer
     "queued_batch": 5,
     "gradients": 6,

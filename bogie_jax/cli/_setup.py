@@ -14,6 +14,8 @@
   and equinox's runtime checks (`error_if`, diffrax's `throw`) are host callbacks in its default
   `raise` mode; with `nan` a failed check gives NaN instead, which the commands report (failed
   starts, an unsuccessful solve). Without it the solves, fits and statistics are never cached.
+- The traced batch programs (multistart fits, `bogie_jax.program_store`) in `programs/` of
+  the cache directory, so that a second identical run also skips JAX's tracing.
 
 The library itself changes no global configuration; only `bogie_jax.cli.main` calls this.
 """
@@ -93,6 +95,10 @@ def prepare(*, use_cache: bool) -> Setup:
         jax.config.update("jax_compilation_cache_dir", str(directory))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+    from ..program_store import use_program_store
+
+    # traced batch programs beside XLA's (a second identical run skips tracing as well)
+    use_program_store(None if directory is None else directory / "programs")
     return Setup(devices, directory)
 
 

@@ -50,9 +50,12 @@ class BatchedFits:
         static = self.static
         lanes = queue_lanes(lanes, len(as_problem(objective).transform.lower))
         self.queued = lanes is not None and schedule is None and supports_queue(method_)
+        # what the compiled batch closes over, for the program store (`bogie_jax.batch`)
+        identity = ("bogie_jax.identify.BatchedFits", static, method_, max_steps, lanes, schedule)
         if self.queued:
             problem_of = lambda dynamic: as_problem(eqx.combine(dynamic, static))
-            self.runner = queued_fits(method_, problem_of, max_steps, lanes=lanes, devices=devices)
+            runner = queued_fits(method_, problem_of, max_steps, lanes=lanes, devices=devices)
+            self.runner = runner.with_identity(identity)
             return
 
         def member(inputs):
@@ -66,7 +69,7 @@ class BatchedFits:
 
         self.runner = batch_runner(
             member, devices=devices, failure_fn=lambda out: ~is_successful(out[0].result)
-        )
+        ).with_identity(identity)
 
     def _inputs(self, objective, thetas, keys, stacked):
         n = thetas.shape[0]
