@@ -9,7 +9,8 @@ the structure, shapes, dtypes and shardings of the arguments, the source of this
 versions of JAX, jaxlib, equinox, diffrax, optimistix and lineax, float64 and equinox's error
 mode. Only programs without host callbacks can be exported, so the store is used only where
 equinox's runtime errors are NaNs (`EQX_ON_ERROR=nan`, as the command line sets). A program that
-cannot be exported, written or read runs the usual way (a warning says why).
+cannot be exported or read runs the usual way (a warning says why). The files are pickles:
+point the store only at a directory of your own (the command line's cache directory).
 """
 
 import functools
@@ -88,7 +89,10 @@ def stored_program(jitted, args: tuple, identity):
             exported = jax.export.deserialize(bytearray(blob))
         else:
             exported, skeleton = _export(jitted, args)
-            _write(path, pickle.dumps((exported.serialize(), skeleton), protocol=5))
+            try:
+                _write(path, pickle.dumps((exported.serialize(), skeleton), protocol=5))
+            except OSError as error:  # e.g. a read-only cache: this run still uses the export
+                warnings.warn(f"batch program not written ({error})", stacklevel=3)
         # the output's structure from its skeleton (a pickled tree with the leaf indices as
         # leaves: pickled tree definitions of equinox modules do not round-trip)
         out_tree = jax.tree.structure(skeleton)

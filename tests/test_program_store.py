@@ -1,7 +1,8 @@
 """The program store: a batch program exported in one runner is loaded by a fresh runner of the
 same identity without tracing its member again and gives bit-identical outputs; another
 identity, another argument shape or an identity that does not pickle gets its own program or
-none; the store is off by default and where equinox's errors are host callbacks.
+none; the store is off by default and where equinox's errors are host callbacks; a store that
+cannot be written still runs the export.
 
 Oracle: the queued runner's own outputs without the store (Newton's square root, as in
 `test_queued_batch.py`)."""
@@ -94,3 +95,15 @@ def test_unpicklable_identity_and_default_are_not_stored(on, monkeypatch):
     monkeypatch.setattr("equinox._config.EQX_ON_ERROR", "nan")
     _runner(2.0, ("sqrt", 2.0))(ARGS)
     assert not list(on.glob(f"*{store.SUFFIX}"))
+
+
+def test_a_store_that_cannot_be_written_still_runs_the_export(on):
+    blocked = on / "not_a_directory"
+    blocked.write_text("")  # the store's directory is a file: writing fails
+    store.use_program_store(blocked)
+    with pytest.warns(UserWarning, match="batch program not written"):
+        out = _runner(2.0, ("sqrt", 2.0))(ARGS)
+    np.testing.assert_allclose(np.asarray(out.outputs[0]) ** 2, 2.0 * ARGS, rtol=1e-12)
+    TRACES.clear()
+    _runner(2.0, ("sqrt", 2.0))(ARGS)  # this process keeps the export: no new trace
+    assert TRACES == []
