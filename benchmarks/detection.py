@@ -487,25 +487,23 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
             )
     elem_rows = []
     for name in (*DEFAULT_CANDIDATES, "alone", "group"):
-        per_records = [
-            (r, (v, e, t, c))
+        per = [
+            (r, v, e, t, c)
             for r in ok
             for v, e, t, c in judged(r)
             if (name == "alone" and v["identifiable"] == "alone")
             or (name == "group" and v["identifiable"] != "alone")
             or (v["name"] == name and v["identifiable"] == "alone")
         ]
-        if not per_records:
+        if not per:
             continue
-        per = [item for _, item in per_records]
-        per_records = [(r, item[0]) for r, item in per_records]
         label = {"alone": "all elements (alone)", "group": "groups (all)"}.get(name, name)
-        err = [abs(e - t) for _, e, t, _ in per]
+        err = [abs(e - t) for _, _, e, t, _ in per]
         cov = sum(c for *_, c in per)
-        implied = np.mean([implied_mae(r, v) for r, v in per_records], axis=0)
+        implied = np.mean([implied_mae(r, v) for r, v, *_ in per], axis=0)
         summary["by_element"][label] = {
             "judged": len(per), "covered": int(cov), "mae": float(np.mean(err)),
-            "alarms": sum(v["verdict"] in ALARMS for v, *_ in per),
+            "alarms": sum(v["verdict"] in ALARMS for _, v, *_ in per),
             "mae_implied": float(implied[0]), "mae_implied_residual_term": float(implied[1]),
         }  # fmt: skip
         elem_rows.append(
@@ -587,27 +585,24 @@ def targets(summary: dict) -> list[str]:
         "Targets (issue 19, item 6; 'met' compares the point estimate, see the intervals above):",
         "",
     ]
-    rows, mae_note = [], ""
+    rows = []  # (target, met, figure, n, note)
     if head:
         rate, n = head["alarms"] / head["cases"], head["cases"]
-        rows.append((f"{HEADLINE} detected in >= 95 %", rate >= 0.95, rate, n))
+        rows.append((f"{HEADLINE} detected in >= 95 %", rate >= 0.95, rate, n, ""))
     if healthy:
         rate, n = healthy["alarms"] / healthy["cases"], healthy["cases"]
-        rows.append(("false alarms on healthy bogies <= 5 %", rate <= 0.05, rate, n))
+        rows.append(("false alarms on healthy bogies <= 5 %", rate <= 0.05, rate, n, ""))
     if alarms:
         rate = correct / alarms
-        rows.append(("correct element in >= 95 % of detections", rate >= 0.95, rate, alarms))
+        rows.append(("correct element in >= 95 % of detections", rate >= 0.95, rate, alarms, ""))
     if allv:
         what = "MAE of relative changes <= 2.5 % (identifiable alone)"
-        rows.append((what, allv["mae"] <= 0.025, allv["mae"], allv["judged"]))
-        mae_note = (
+        note = (
             f"; the standard errors imply {100 * allv['mae_implied']:.1f} %, their residual "
             f"term alone {100 * allv['mae_implied_residual_term']:.1f} %"
         )
-    out += [
-        line(what, ok, f"{100 * x:.1f} % (n = {n}" + (mae_note if "MAE" in what else "") + ")")
-        for what, ok, x, n in rows
-    ]
+        rows.append((what, allv["mae"] <= 0.025, allv["mae"], allv["judged"], note))
+    out += [line(what, ok, f"{100 * x:.1f} % (n = {n}{note})") for what, ok, x, n, note in rows]
     if cover:
         ok = all(0.9 <= c <= 0.98 for c in cover)
         figure = f"{100 * min(cover):.0f}-{100 * max(cover):.0f} % over {len(cover)} elements"

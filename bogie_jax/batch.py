@@ -112,23 +112,24 @@ class BatchRunner:
     def program(self, batch) -> tuple[Callable, tuple]:
         return self._jitted, (self._prepare(batch)[0],)
 
-    def compile(self, batch) -> None:
-        """Compile for batches shaped like `batch` without running (kept for later runs)."""
-        args = (self._prepare(batch)[0],)
+    def _runnable(self, args: tuple):
+        """`(program, its arguments, output rebuild)`: the stored program on the flat leaves of
+        `args` where the store has it, else the jitted program on `args`."""
         stored = stored_program(self._jitted, args, self.identity)
         if stored is None:
-            self._jitted.lower(*args).compile()
-        else:
-            stored[0].lower(*jax.tree.leaves(args)).compile()
+            return self._jitted, args, lambda out: out
+        call, out_tree = stored
+        return call, tuple(jax.tree.leaves(args)), lambda out: jax.tree.unflatten(out_tree, out)
+
+    def compile(self, batch) -> None:
+        """Compile for batches shaped like `batch` without running (kept for later runs)."""
+        program, args, _ = self._runnable((self._prepare(batch)[0],))
+        program.lower(*args).compile()
 
     def __call__(self, batch) -> BatchResult:
-        args, layout = self._prepare(batch)
-        stored = stored_program(self._jitted, (args,), self.identity)
-        if stored is None:
-            return self._finish(self._jitted(args), layout)
-        call, out_tree = stored
-        outputs = jax.tree.unflatten(out_tree, call(*jax.tree.leaves(args)))
-        return self._finish(outputs, layout)
+        device_args, layout = self._prepare(batch)
+        program, args, rebuild = self._runnable((device_args,))
+        return self._finish(rebuild(program(*args)), layout)
 
 
 def batch_runner(

@@ -51,9 +51,13 @@ def _environment() -> bytes:
 
 
 def _error_mode() -> str:
-    import equinox._config as eqx_config  # the mode equinox read at its import
+    """The mode equinox read at its import (its private config; else the variable it reads)."""
+    try:
+        import equinox._config as eqx_config
 
-    return eqx_config.EQX_ON_ERROR
+        return eqx_config.EQX_ON_ERROR
+    except (ImportError, AttributeError):  # another equinox layout: its documented variable
+        return os.environ.get("EQX_ON_ERROR", "raise")
 
 
 def program_key(identity, args) -> str | None:
