@@ -5,7 +5,9 @@ on `tests/reference/bogie_twin.py`), for the symmetric named sets (zeros) and an
 bogie (left anti-yaw damper at 0, primary 1L vertical spring +30 %, secondary left lateral
 damper at 50 %); its derivative (implicit function theorem, forward and reverse mode) against
 central differences; its failure results (step limit, non-finite parameters) per bogie under
-`vmap`; and a simulation started there (the default initial state of `simulate`) stays there.
+`vmap`; a simulation started there (the default initial state of `simulate`) stays there; and
+the test that lets a run or an objective skip the solve (`rests_at_zero`, `fixed_rest_state`)
+against the twin's rest states.
 """
 
 import diffrax as dfx
@@ -18,9 +20,14 @@ import pytest
 import scipy.optimize
 
 import bogie_jax as bj
-from bogie_jax.model import equilibrium_residual, static_equilibrium, static_equilibrium_solve
+from bogie_jax.model import (
+    equilibrium_residual,
+    rests_at_zero,
+    static_equilibrium,
+    static_equilibrium_solve,
+)
 from bogie_jax.params import PARAMETER_SETS, set_parameters
-from bogie_jax.simulation import simulate
+from bogie_jax.simulation import rest_start, simulate
 from bogie_jax.track import perfect_track
 
 
@@ -182,3 +189,52 @@ def test_simulation_from_rest_stays_at_rest(asymmetric, q0):
     drift = np.abs(np.asarray(run) - q0).max()
     print(f"drift from rest over 1 s: {drift:.2e}")
     assert drift < 1e-9, drift
+
+
+def test_rests_at_zero_agrees_with_the_twin(asymmetric):
+    """`rests_at_zero` (q = 0 passes the Newton test, so a run may skip the solve): true for the
+    symmetric named sets, whose twin accelerations at q = 0 are below 1e-10, false for the
+    asymmetric bogie, whose twin rest state lies 1e-5 or more from zero."""
+    sets = [PARAMETER_SETS[name]() for name in sorted(PARAMETER_SETS)]
+    for params in sets:
+        assert np.abs(BogieTwin(params, 50.0).qddot(0.0, np.zeros(10), np.zeros(10))).max() < 1e-10
+    assert rests_at_zero(sets)
+    q_twin, _ = _twin_equilibrium(asymmetric)
+    assert np.abs(q_twin).max() > 1e-5
+    assert not rests_at_zero([asymmetric])
+    assert not rests_at_zero([*sets, asymmetric])  # any set off zero counts
+    assert rest_start(asymmetric, None) is None
+    np.testing.assert_array_equal(rest_start(sets[0], None), np.zeros(20))
+
+
+@pytest.mark.parametrize(
+    "names, fixed",
+    [
+        (("primary.kz", "primary.cz", "yaw_dampers.c"), True),  # the default identification
+        (("yaw_dampers.left.c", "primary.1L.cz", "secondary.right.cy"), True),  # dampers
+        (("primary.1L.ky", "secondary.kz"), True),  # no preload change at q = 0
+        (("yaw_dampers.left.c", "primary.1L.kz"), False),  # one spring carries more
+        (("secondary.left.kz",), False),
+    ],
+)
+def test_fixed_rest_state_only_where_no_selected_parameter_moves_it(names, fixed):
+    """`fixed_rest_state` holds an objective's start at zero only where the selected
+    parameters cannot move the rest state. Oracle: the twin's accelerations at q = 0 and zero
+    velocity at three theta away from the probes (up to e^3 = 20x the nominal): below 1e-10
+    at all three where the start is held (q = 0 is the rest state there), 1e-3 m/s^2 or more
+    at one of them at least where it is not."""
+    from bogie_jax.cost import fixed_rest_state, select_parameters
+
+    nominal = bj.manchester_benchmark()
+    selection = select_parameters(nominal, names)
+    start = fixed_rest_state(nominal, selection, bj.ModelOptions())
+    assert (start is not None) == fixed
+    thetas = np.random.default_rng(7).uniform(-3.0, 3.0, (3, len(names)))
+    at_zero = lambda p: BogieTwin(p, 50.0).qddot(0.0, np.zeros(10), np.zeros(10))
+    largest = max(np.abs(at_zero(selection.apply(nominal, th))).max() for th in thetas)
+    print(names, "largest |a(q = 0)| of the twin:", largest)
+    if fixed:
+        np.testing.assert_array_equal(start, np.zeros(20))
+        assert largest < 1e-10
+    else:
+        assert largest > 1e-3

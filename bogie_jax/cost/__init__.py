@@ -28,6 +28,7 @@ from ._lead_in import (
 )
 from ._make import make_objective as make_objective
 from ._objective import Objective as Objective, ResidualModel as ResidualModel
+from ._rest_state import fixed_rest_state as fixed_rest_state
 from ._run_corrections import (
     CorrectedObjective as CorrectedObjective,
     RunCorrections as RunCorrections,

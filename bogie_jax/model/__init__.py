@@ -15,7 +15,9 @@ from ._dynamics import (
     vector_field as vector_field,
 )
 from ._equilibrium import (
+    REST_ATOL as REST_ATOL,
     equilibrium_residual as equilibrium_residual,
+    rests_at_zero as rests_at_zero,
     static_equilibrium as static_equilibrium,
     static_equilibrium_solve as static_equilibrium_solve,
 )

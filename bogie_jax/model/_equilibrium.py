@@ -31,6 +31,7 @@ iterates and stopping test (same q0 and step counts, to rounding) and still retu
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 
 from .._householder import back_substitute, triangularise
@@ -42,6 +43,10 @@ from ._layout import N_DOF
 
 # [m/s] speed of the rolling wheelsets in the solve (q0 does not depend on it, see above)
 EQUILIBRIUM_SPEED = 1.0
+# [m/s^2, rad/s^2] the Newton solve's default acceptance level for |a| (`atol`)
+REST_ATOL = 1e-10
+# parameter sets per evaluation of `rests_at_zero` (padded to it: one program for every caller)
+REST_BLOCK = 9
 
 
 def _residual(q, model):
@@ -136,7 +141,7 @@ def static_equilibrium_solve(
     *,
     options: ModelOptions = ModelOptions(),
     rtol: float = 1e-10,
-    atol: float = 1e-10,
+    atol: float = REST_ATOL,
     max_steps: int = 32,
     throw: bool = True,
 ) -> optx.Solution:
@@ -170,7 +175,7 @@ def static_equilibrium(
     *,
     options: ModelOptions = ModelOptions(),
     rtol: float = 1e-10,
-    atol: float = 1e-10,
+    atol: float = REST_ATOL,
     max_steps: int = 32,
     throw: bool = True,
 ):
@@ -198,3 +203,28 @@ def static_equilibrium(
     return static_equilibrium_solve(
         params, options=options, rtol=rtol, atol=atol, max_steps=max_steps, throw=throw
     ).value
+
+
+@eqx.filter_jit
+def _rest_accelerations(param_sets: BogieParams, options: ModelOptions):
+    """a(q = 0) (k, 10) of parameter sets stacked on a leading axis k."""
+    at_rest = jnp.zeros(N_DOF)
+    return jax.vmap(lambda p: _residual(at_rest, _rest_model(p, options)))(param_sets)
+
+
+def rests_at_zero(param_sets, *, options: ModelOptions = ModelOptions()) -> bool:
+    """True when q = 0 is the rest state of every `BogieParams` in `param_sets` (concrete, a
+    sequence): the accelerations at q = 0 and zero velocity pass the Newton solve's own test,
+    |a| < `REST_ATOL` [m/s^2, rad/s^2], so `static_equilibrium` would return q0 = 0 to within
+    |J^-1| `REST_ATOL` (about 1e-13 m). Then a run can start from (0, 0) without the solve, which
+    is half the compile time of a forward solve (10 s against 5 s, 2 CPUs). Evaluated in blocks
+    of `REST_BLOCK` sets (the last set repeated), so that every caller shares one program."""
+    sets = list(param_sets)
+    sets += sets[-1:] * (-len(sets) % REST_BLOCK)
+    largest = 0.0
+    for k in range(0, len(sets), REST_BLOCK):
+        block = sets[k : k + REST_BLOCK]
+        stacked = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *block)
+        a = np.asarray(_rest_accelerations(stacked, options))
+        largest = max(largest, float(np.max(np.abs(a))))
+    return largest < REST_ATOL  # False for NaN

@@ -1,0 +1,51 @@
+"""`fixed_rest_state`: an objective's start state when the parameters it fits cannot move it.
+
+An objective starts its run at rest in the static equilibrium q0(p(theta)) of the parameters it
+evaluates (`bogie_jax.model.static_equilibrium`): a Newton solve inside its compiled program,
+with the implicit-function-theorem derivative. Often no fitted parameter can move q0:
+- a damping coefficient acts on velocities only, which are zero at rest;
+- a tied vertical stiffness (`primary.kz`: all four axleboxes) scales every spring of its group
+  alike, so on a symmetric bogie each still carries its design load at q = 0
+  (`spring_preloads`: P_i = design load * kz_i / mean(kz)), and q0 = 0.
+The solve is then wasted, and it is a large part of the program: for the default 3-parameter
+identification (`primary.kz`, `primary.cz`, `yaw_dampers.c`) the sharded LM batch traced in
+20.7 s and compiled in 48.8 s with it, 15.0 s and 34.5 s without (2 CPUs, fresh processes).
+
+The test (`bogie_jax.model.rests_at_zero`): q = 0 passes the Newton solve's own convergence
+test at theta = 0 and at `N_PROBES` fixed pseudo-random theta spread over several e-folds of
+every parameter. The probes see any parameter that acts on the rest state over a fair part of
+its range (the accelerations at q = 0 are then of order m/s^2, not 1e-10); one that acts only
+in a small part of its range could escape them. A given `y0` is never replaced, and traced
+parameters (under `jit`) keep the solve.
+"""
+
+import jax
+import numpy as np
+
+from ..model import N_DOF, rests_at_zero
+from ..params import BogieParams, ModelOptions
+from ._selection import ParameterSelection
+
+
+# pseudo-random theta probed besides theta = 0, and their spread (theta ~ N(0, 2^2): factors
+# e^-4 to e^4 on a log scale, most of the range of a bounded parameter)
+N_PROBES = 8
+PROBE_SPREAD = 2.0
+
+
+def rest_probes(n_params: int) -> np.ndarray:
+    """theta = 0 and `N_PROBES` fixed pseudo-random theta, (N_PROBES + 1, n_params)."""
+    rng = np.random.default_rng(20261126)
+    probes = PROBE_SPREAD * rng.standard_normal((N_PROBES, n_params))
+    return np.concatenate([np.zeros((1, n_params)), probes])
+
+
+def fixed_rest_state(
+    params: BogieParams, selection: ParameterSelection, options: ModelOptions
+) -> np.ndarray | None:
+    """The start state (20,) of zeros when q = 0 is the rest state at every probed theta (see
+    the module docstring), else `None` (the objective solves q0 at each theta)."""
+    if any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves((params, selection))):
+        return None
+    sets = [selection.apply(params, theta) for theta in rest_probes(selection.n_params)]
+    return np.zeros(2 * N_DOF) if rests_at_zero(sets, options=options) else None
