@@ -16,14 +16,7 @@ from ._solve_settings import (
     resolve_settings,
 )
 from ._validation import check_positive_int, check_range
-from .model import (
-    N_DOF,
-    accelerations,
-    build_model,
-    rests_at_zero,
-    static_equilibrium_solve,
-    vector_field,
-)
+from .model import N_DOF, accelerations, build_model, static_equilibrium_solve, vector_field
 from .params import BogieParams, ModelOptions
 from .track import TrackIrregularity
 
@@ -127,18 +120,6 @@ def check_window(start_position, lead_in, *, speed=None, duration=None, track=No
         )
 
 
-def rest_start(params: BogieParams, y0, options: ModelOptions = ModelOptions()):
-    """The initial state to compile a run with: `y0` when given; zeros (20,) when
-    `params` are concrete and q = 0 is their rest state (`bogie_jax.model.rests_at_zero`: a
-    symmetric bogie), so that the program holds no static-equilibrium solve (half the compile
-    time of a forward solve); else `None` (the program solves q0 of its traced parameters)."""
-    if y0 is not None:
-        return y0
-    if any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(params)):
-        return None
-    return np.zeros(2 * N_DOF) if rests_at_zero([params], options=options) else None
-
-
 def _concrete(x):
     if isinstance(x, jax.core.Tracer):
         return None
@@ -202,8 +183,7 @@ def simulate(
       `bogie_jax.model.static_equilibrium(params)` (zeros for a symmetric bogie), computed
       inside this function so that it follows traced parameters (differentiably). If its
       Newton solve fails, `Trajectory.result` says so (with `throw=False`; with `throw=True`
-      it raises). Concrete `params` whose rest state is q = 0 start from zeros without the
-      solve (`rest_start`).
+      it raises).
     - `options`: `ModelOptions` (nonlinear model options).
     - `settings`: `SolveSettings` (solver, step-size controller, adjoint, `max_steps`, `dt0`,
       `throw`; default `SolveSettings()`). Use `settings.forward_mode()` for `jax.jacfwd`,
@@ -220,7 +200,6 @@ def simulate(
     check_simulation_inputs(speed, duration, sample_rate, settings.max_steps)
     check_window(start_position, lead_in, speed=speed, duration=duration, track=track)
     warn_if_float32()
-    y0 = rest_start(params, y0, options)
     as_array = lambda x: jnp.asarray(x, dtype=float)  # a Python float would be static
     return _simulate_compiled(
         params,

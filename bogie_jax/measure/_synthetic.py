@@ -14,7 +14,6 @@ from ..simulation import (
     Trajectory,
     check_simulation_inputs,
     check_window,
-    rest_start,
     simulate,
 )
 from ..track import TrackIrregularity, TrackReference
@@ -129,9 +128,9 @@ def synthetic_measurement(
     settings = resolve_settings(settings, SolveSettings(), **solve_options).replace(throw=False)
     sensors = default_sensor_layout(params) if sensors is None else tuple(sensors)
     layout = layout_description(sensors)
+    y0 = None if y0 is None else np.asarray(y0, dtype=float)
     check_simulation_inputs(speed, duration, sample_rate, settings.max_steps)
     check_window(start_position, lead_in, speed=speed, duration=duration, track=track)
-    y0 = rest_start(params, None if y0 is None else np.asarray(y0, dtype=float), options)
     window = (np.asarray(start_position, dtype=float), np.asarray(lead_in, dtype=float))
     ts, clean, ok = _clean_channels(
         params, track, np.asarray(speed, dtype=float), sensors, duration, sample_rate, window,

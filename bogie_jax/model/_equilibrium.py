@@ -216,9 +216,9 @@ def rests_at_zero(param_sets, *, options: ModelOptions = ModelOptions()) -> bool
     """True when q = 0 is the rest state of every `BogieParams` in `param_sets` (concrete, a
     sequence): the accelerations at q = 0 and zero velocity pass the Newton solve's own test,
     |a| < `REST_ATOL` [m/s^2, rad/s^2], so `static_equilibrium` would return q0 = 0 to within
-    |J^-1| `REST_ATOL` (about 1e-13 m). Then a run can start from (0, 0) without the solve, which
-    is half the compile time of a forward solve (10 s against 5 s, 2 CPUs). Evaluated in blocks
-    of `REST_BLOCK` sets (the last set repeated), so that every caller shares one program."""
+    |J^-1| `REST_ATOL` (about 1e-13 m). An objective whose parameters all pass then starts from
+    rest at zero without the solve (`bogie_jax.cost.fixed_rest_state`). Evaluated in blocks of
+    `REST_BLOCK` sets (the last set repeated), so that every caller shares one program."""
     sets = list(param_sets)
     sets += sets[-1:] * (-len(sets) % REST_BLOCK)
     largest = 0.0
