@@ -38,7 +38,7 @@ PROBLEM = LeastSquaresProblem(_residuals, TR)
 N, CHUNK = 7, 3  # three chunks, the last one padded
 # the optimum to rounding (no relative-offset stop, see test_levenberg_marquardt.py): the
 # chunked ends are compared with the exact minima
-EXACT_LM = local_methods(offset_tol=0.0)["lm"]
+EXACT_LM = local_methods(offset_tol=0.0, stall_offset=0.0)["lm"]
 KW = dict(key=jr.PRNGKey(3), n_starts=N, chunk=CHUNK, max_steps=200, method=EXACT_LM)
 
 

@@ -85,7 +85,7 @@ TWO = LeastSquaresProblem(_two_minima, TWO_TR)
 # the optimum to rounding (no relative-offset stop): the tests that compare ends and statistics
 # with exact references or between batch layouts on these few-residual problems; the LM's
 # statistical stop is tested in test_levenberg_marquardt.py
-EXACT_LM = local_methods(offset_tol=0.0)["lm"]
+EXACT_LM = local_methods(offset_tol=0.0, stall_offset=0.0)["lm"]
 
 
 def _rel_err(estimate, truth):

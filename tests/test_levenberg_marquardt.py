@@ -75,6 +75,36 @@ def test_lm_stops_within_a_small_fraction_of_a_standard_error():
     assert np.sqrt(delta @ np.linalg.solve(cov, delta)) < 2 * 1e-2 * np.sqrt(3)
 
 
+def test_a_fit_stalled_at_its_objectives_own_error_stops_near_the_optimum():
+    """A rough term of 10 % of the noise: the offset's floor lies above `offset_tol`, so near
+    the optimum the steps are rejected and only the Cauchy test stops the fit. The stall rule
+    (5 rejected steps in a row at an offset below 0.1) stops it successfully in a third of the
+    steps, at the same point: within 0.1 sqrt(3) joint standard errors of scipy's optimum of
+    the smooth residuals (the rule's promise)."""
+
+    def rough(p, _):
+        wiggle = 1e-3 * jnp.sin(1e7 * (p[0] + 2.0 * p[1] + 3.0 * p[2]) + 17.0 * T)
+        return _smooth(p) + jax.lax.stop_gradient(wiggle)
+
+    def lm(stall_offset):
+        solver = LevenbergMarquardt(1e-10, 1e-10, 1e-2, HouseholderQR(), stall_offset=stall_offset)
+        p0 = jnp.array([1.0, 0.3, 0.0])
+        return optx.least_squares(rough, solver, p0, max_steps=200, throw=False)
+
+    stalled, plain = lm(0.1), lm(0.0)
+    assert stalled.result == optx.RESULTS.successful
+    steps, plain_steps = int(stalled.stats["num_steps"]), int(plain.stats["num_steps"])
+    print(f"steps with the stall rule {steps}, without {plain_steps}")
+    assert 3 * steps <= plain_steps
+
+    ref = scipy.optimize.least_squares(
+        lambda p: np.asarray(_smooth(p)), [1.0, 0.3, 0.0], xtol=1e-15, ftol=1e-15, gtol=1e-15
+    )
+    cov = (2 * ref.cost / (T.size - 3)) * np.linalg.inv(ref.jac.T @ ref.jac)
+    delta = np.asarray(stalled.value) - ref.x
+    assert np.sqrt(delta @ np.linalg.solve(cov, delta)) < 0.1 * np.sqrt(3)
+
+
 def test_a_parameter_held_on_its_bound_is_left_out_of_the_offset():
     """The decay rate's box ends below its best value: the fit holds it on the bound. The offset
     over the other two parameters stops the fit at their optimum given the bound (scipy's

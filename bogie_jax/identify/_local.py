@@ -173,7 +173,9 @@ class PatternSearch(AbstractLocalMethod):
         return LocalOutput(theta, result, k, 1 + 2 * n * k, jnp.zeros_like(k))
 
 
-def local_methods(rtol: float = 1e-10, atol: float = 1e-10, offset_tol: float = 1e-2) -> dict:
+def local_methods(
+    rtol: float = 1e-10, atol: float = 1e-10, offset_tol: float = 1e-2, stall_offset: float = 0.1
+) -> dict:
     """The name -> method table used at the CLI/IO boundary.
 
     The least-squares steps use `HouseholderQR` (no LAPACK call, see `_householder.py`: a
@@ -185,11 +187,14 @@ def local_methods(rtol: float = 1e-10, atol: float = 1e-10, offset_tol: float = 
     before the steps vanish (on the default `bogie-jax identify` scenario, 8 starts at ODE rtol
     1e-6, 1e-10 ... 1e-3 gave the same 7-43 steps). The LM (`_levenberg_marquardt`) also stops
     on the Bates-Watts relative offset (`offset_tol`, default 1e-2: the estimate is then within
-    `0.01 sqrt(n)` joint standard errors of the optimum); the other methods keep optimistix's
-    test alone."""
+    `0.01 sqrt(n)` joint standard errors of the optimum), or below `stall_offset` (0.1) when
+    five steps in a row were rejected (stalled at the ODE error); `offset_tol=0.0,
+    stall_offset=0.0` leaves optimistix's test alone, as the other methods have it."""
     qr = HouseholderQR()
     return {
-        "lm": LeastSquaresMethod(LevenbergMarquardt(rtol, atol, offset_tol, linear_solver=qr)),
+        "lm": LeastSquaresMethod(
+            LevenbergMarquardt(rtol, atol, offset_tol, linear_solver=qr, stall_offset=stall_offset)
+        ),
         "gauss-newton": LeastSquaresMethod(optx.GaussNewton(rtol, atol, linear_solver=qr)),
         "dogleg": LeastSquaresMethod(optx.Dogleg(rtol, atol, linear_solver=qr)),
         "bfgs": MinimiserMethod(optx.BFGS(rtol, atol)),
