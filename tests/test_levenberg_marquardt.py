@@ -79,8 +79,8 @@ def test_a_fit_stalled_at_its_objectives_own_error_stops_near_the_optimum():
     """A rough term of 10 % of the noise: the offset's floor lies above `offset_tol`, so near
     the optimum the steps are rejected and only the Cauchy test stops the fit. The stall rule
     (5 rejected steps in a row at an offset below 0.1) stops it successfully in a third of the
-    steps, at the same point: within 0.1 sqrt(3) joint standard errors of scipy's optimum of
-    the smooth residuals (the rule's promise)."""
+    steps or fewer, within 0.1 sqrt(3) joint standard errors of scipy's optimum of the smooth
+    residuals (the rule's promise)."""
 
     def rough(p, _):
         wiggle = 1e-3 * jnp.sin(1e7 * (p[0] + 2.0 * p[1] + 3.0 * p[2]) + 17.0 * T)

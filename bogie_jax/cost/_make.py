@@ -53,7 +53,7 @@ def make_objective(
       `bogie_jax.model.static_equilibrium`); zeros for a symmetric bogie. Where the selected
       parameters cannot move it (dampers, tied stiffnesses of a symmetric bogie: tested at
       probe points by `bogie_jax.cost.fixed_rest_state`), the objective holds `y0` = 0 and its
-      program has no equilibrium solve (a third of the fits' compile time).
+      program has no equilibrium solve (a fifth to a third of a fit's compile time).
     - `params`: base parameters: nominal values of the selected parameters (theta = 0) and
       fixed values of the others. `track`: the track of the run.
     - `names`, `bounds`: the selection (see `select_parameters`).

@@ -7,9 +7,10 @@ with the implicit-function-theorem derivative. Often no fitted parameter can mov
 - a tied vertical stiffness (`primary.kz`: all four axleboxes) scales every spring of its group
   alike, so on a symmetric bogie each still carries its design load at q = 0
   (`spring_preloads`: P_i = design load * kz_i / mean(kz)), and q0 = 0.
-The solve is then wasted, and it is a large part of the program: for the default 3-parameter
-identification (`primary.kz`, `primary.cz`, `yaw_dampers.c`) the sharded LM batch traced in
-20.7 s and compiled in 48.8 s with it, 15.0 s and 34.5 s without (2 CPUs, fresh processes).
+The solve is then wasted, and it is a fifth to a third of the program: for the default
+3-parameter identification (`primary.kz`, `primary.cz`, `yaw_dampers.c`) the sharded LM batch
+traced in 17.9 s and compiled in 46.5 s with it, 12.4 s and 36.5 s without (2 CPUs, fresh
+processes; `benchmarks/results/compile_s20_before_vs_s20_after.md`).
 
 The test (`bogie_jax.model.rests_at_zero`): q = 0 passes the Newton solve's own convergence
 test at theta = 0 and at `N_PROBES` fixed pseudo-random theta spread over several e-folds of
@@ -18,8 +19,7 @@ its range (the accelerations at q = 0 are then of order m/s^2, not 1e-10); one t
 in a small part of its range could escape them. A given `y0` is never replaced, and traced
 parameters (under `jit`) keep the solve. Each decision is kept for the process, keyed by the
 values of the parameters and the selection: the monitor builds the same objective for every
-run and every track-record draw (32 times for the demo's 2 runs and 16 draws), and the probes
-cost 0.1-0.5 s each time.
+run and every track-record draw, and the probes cost a fraction of a second each time.
 """
 
 import hashlib
