@@ -194,7 +194,8 @@ def test_simulation_from_rest_stays_at_rest(asymmetric, q0):
 def test_rests_at_zero_agrees_with_the_twin(asymmetric):
     """`rests_at_zero` (q = 0 passes the Newton test, so an objective may skip the solve): true
     for the symmetric named sets, whose twin accelerations at q = 0 are below 1e-10, false for
-    the asymmetric bogie, whose twin rest state lies 1e-5 or more from zero."""
+    the asymmetric bogie, whose twin rest state lies 1e-5 or more from zero, and for a set with
+    a NaN stiffness."""
     sets = [PARAMETER_SETS[name]() for name in sorted(PARAMETER_SETS)]
     for params in sets:
         assert np.abs(BogieTwin(params, 50.0).qddot(0.0, np.zeros(10), np.zeros(10))).max() < 1e-10
@@ -203,6 +204,8 @@ def test_rests_at_zero_agrees_with_the_twin(asymmetric):
     assert np.abs(q_twin).max() > 1e-5
     assert not rests_at_zero([asymmetric])
     assert not rests_at_zero([*sets, asymmetric])  # any set off zero counts
+    broken = set_parameters(sets[0], {"primary.1L.kz": np.nan})
+    assert not rests_at_zero([*sets, broken])  # a non-finite acceleration never passes
 
 
 @pytest.mark.parametrize(

@@ -45,8 +45,6 @@ from ._layout import N_DOF
 EQUILIBRIUM_SPEED = 1.0
 # [m/s^2, rad/s^2] the Newton solve's default acceptance level for |a| (`atol`)
 REST_ATOL = 1e-10
-# parameter sets per evaluation of `rests_at_zero` (padded to it: one program for every caller)
-REST_BLOCK = 9
 
 
 def _residual(q, model):
@@ -216,15 +214,9 @@ def rests_at_zero(param_sets, *, options: ModelOptions = ModelOptions()) -> bool
     """True when q = 0 is the rest state of every `BogieParams` in `param_sets` (concrete, a
     sequence): the accelerations at q = 0 and zero velocity pass the Newton solve's own test,
     |a| < `REST_ATOL` [m/s^2, rad/s^2], so `static_equilibrium` would return q0 = 0 to within
-    |J^-1| `REST_ATOL` (about 1e-13 m). An objective whose parameters all pass then starts from
-    rest at zero without the solve (`bogie_jax.cost.fixed_rest_state`). Evaluated in blocks of
-    `REST_BLOCK` sets (the last set repeated), so that every caller shares one program."""
-    sets = list(param_sets)
-    sets += sets[-1:] * (-len(sets) % REST_BLOCK)
-    largest = 0.0
-    for k in range(0, len(sets), REST_BLOCK):
-        block = sets[k : k + REST_BLOCK]
-        stacked = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *block)
-        a = np.asarray(_rest_accelerations(stacked, options))
-        largest = max(largest, float(np.max(np.abs(a))))
-    return largest < REST_ATOL  # False for NaN
+    |J^-1| `REST_ATOL` (about 1e-13 m); false where any is not finite. An objective whose
+    parameters all pass starts from rest at zero without the solve
+    (`bogie_jax.cost.fixed_rest_state`). One program per number of sets."""
+    stacked = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *param_sets)
+    largest = np.max(np.abs(np.asarray(_rest_accelerations(stacked, options))))
+    return bool(largest < REST_ATOL)  # False for NaN
