@@ -34,6 +34,7 @@ LONGEST_FIRST = (
     "test_run_corrections.py",
     "test_twin.py",
     "test_identify.py",
+    "test_notebooks.py",
     "test_cost.py",
     "test_simulate.py",
     "test_lead_in.py",

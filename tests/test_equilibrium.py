@@ -239,3 +239,31 @@ def test_fixed_rest_state_only_where_no_selected_parameter_moves_it(names, fixed
         assert largest < 1e-10
     else:
         assert largest > 1e-3
+
+
+def test_synthetic_data_start_where_the_objective_starts():
+    """Where the objective holds its start at zero, `synthetic_objective` simulates its data
+    from zero too, without the equilibrium solve: the same data as a simulation from the
+    truth's static equilibrium (the Newton solve, `synthetic_measurement`'s default, which
+    stops within 1e-12 of zero: see above), to 1e-6 of each sensor's noise level."""
+    from bogie_jax.cost import synthetic_objective
+    from bogie_jax.measure import default_sensor_layout, synthetic_measurement
+
+    params = bj.manchester_benchmark()
+    wheelbase = 2 * float(params.geometry.semi_wheelbase)
+    reference = bj.TrackReference.for_run(
+        "erri-high", seed=3, speed=50.0, duration=0.1, wheelbase=wheelbase
+    )
+    track = reference.build()
+    run = dict(speed=50.0, duration=0.1, sample_rate=100.0)
+    solve = dict(stepsize_controller=dfx.ConstantStepSize(), dt0=1e-3)
+    names = ("primary.kz", "primary.cz", "yaw_dampers.c")
+    objective, _ = synthetic_objective(params, track, names, **run, **solve)
+    assert objective.residual_model.y0 is not None  # the start is held at zero
+    from_rest = synthetic_measurement(params, track, **run, **solve).data
+    noise = np.array([float(s.noise_std) for s in default_sensor_layout(params)])
+    moved = np.abs(from_rest).max(axis=0) / noise
+    assert moved.max() > 1.0  # the track moves the bogie by more than the noise
+    difference = np.abs(np.asarray(objective.residual_model.data) - from_rest).max(axis=0)
+    print("largest difference / noise level:", (difference / noise).max())
+    assert np.all(difference < 1e-6 * noise)

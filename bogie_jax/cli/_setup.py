@@ -7,15 +7,15 @@
   `HIP_VISIBLE_DEVICES`, `ROCR_VISIBLE_DEVICES` or `TPU_VISIBLE_CHIPS` that selects devices, or
   a GPU/TPU device node (`/dev/nvidia0`, `/dev/kfd`, `/dev/accel0`). JAX cannot be asked without
   importing it, and XLA reads the flag once, at import.
-- A persistent compilation cache: `$BOGIE_JAX_CACHE_DIR`, else `$XDG_CACHE_HOME/bogie_jax/jax`,
-  else `~/.cache/bogie_jax/jax`; `--no-cache` turns it off. Every compiled program is written
-  (no minimum compile time or size). Left alone when the caller already set a cache directory.
+- The persistent compilation cache (`bogie_jax.use_compilation_cache`: `$BOGIE_JAX_CACHE_DIR`,
+  else `$XDG_CACHE_HOME/bogie_jax/jax`, else `~/.cache/bogie_jax/jax`, every program written);
+  `--no-cache` turns it off. Left alone when the caller already set a cache directory.
 - `EQX_ON_ERROR=nan` (unless set): JAX never writes a program with host callbacks to the cache,
   and equinox's runtime checks (`error_if`, diffrax's `throw`) are host callbacks in its default
   `raise` mode; with `nan` a failed check gives NaN instead, which the commands report (failed
   starts, an unsuccessful solve). Without it the solves, fits and statistics are never cached.
-- The traced batch programs (multistart fits, `bogie_jax.program_store`) in `programs/` of
-  the cache directory, so that a second identical run also skips JAX's tracing.
+- With it, the traced batch programs (multistart fits, `bogie_jax.program_store`) in
+  `programs/` of the cache directory, so that a second identical run also skips JAX's tracing.
 
 The library itself changes no global configuration; only `bogie_jax.cli.main` calls this.
 """
@@ -63,14 +63,6 @@ def accelerator_hinted(environ=os.environ) -> bool:
     return any(os.path.exists(node) for node in _ACCELERATOR_NODES)
 
 
-def cache_dir(environ=os.environ) -> Path:
-    """The per-user compilation cache directory."""
-    if environ.get("BOGIE_JAX_CACHE_DIR"):
-        return Path(environ["BOGIE_JAX_CACHE_DIR"]).expanduser()
-    base = environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "bogie_jax" / "jax"
-
-
 def prepare(*, use_cache: bool) -> Setup:
     """Set `XLA_FLAGS` (before JAX is imported) and configure JAX: float64 and the cache."""
     if "matplotlib" not in sys.modules:
@@ -85,20 +77,15 @@ def prepare(*, use_cache: bool) -> Setup:
 
     jax.config.update("jax_enable_x64", True)
     directory = None
-    current = jax.config.jax_compilation_cache_dir
-    if not use_cache:
-        jax.config.update("jax_enable_compilation_cache", False)
-    elif current is not None:  # the caller's (a test session, a notebook) wins
-        directory = Path(current)
-    else:
-        directory = cache_dir()
-        jax.config.update("jax_compilation_cache_dir", str(directory))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-        jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
-    from ..program_store import use_program_store
+    if use_cache:
+        from ..compilation_cache import use_compilation_cache
 
-    # traced batch programs beside XLA's (a second identical run skips tracing as well)
-    use_program_store(None if directory is None else directory / "programs")
+        directory = use_compilation_cache()  # a cache the caller set (a test session's) wins
+    else:
+        from ..program_store import use_program_store
+
+        jax.config.update("jax_enable_compilation_cache", False)
+        use_program_store(None)
     return Setup(devices, directory)
 
 
