@@ -30,6 +30,7 @@ LAYERS = {
     "measure": 4,
     "cost": 5,
     "program_store": 5,  # batch programs kept across processes (`jax.export`)
+    "compilation_cache": 5,  # turns on JAX's persistent cache and the program store beside it
     "batch": 5,  # generic batch runners under the identification layer
     "queued_batch": 5,
     "gradients": 6,

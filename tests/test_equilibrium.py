@@ -267,3 +267,27 @@ def test_synthetic_data_start_where_the_objective_starts():
     difference = np.abs(np.asarray(objective.residual_model.data) - from_rest).max(axis=0)
     print("largest difference / noise level:", (difference / noise).max())
     assert np.all(difference < 1e-6 * noise)
+
+
+def test_each_scenario_truth_rests_at_zero_where_its_data_start_there():
+    """`scenario_problem` starts its data at zero where the scenario's offset parameters cannot
+    move the rest state (`fixed_rest_state` on them): the twin's accelerations of every such
+    truth at q = 0 are below 1e-10 (m/s^2, rad/s^2), and at least the default scenario is one."""
+    from bogie_jax.cost import fixed_rest_state, select_parameters
+    from bogie_jax.identify import SCENARIOS
+    from bogie_jax.params import get_parameter
+
+    nominal = bj.manchester_benchmark()
+    held = []
+    for name, scenario in SCENARIOS.items():
+        offset = select_parameters(nominal, tuple(scenario.offsets))
+        if fixed_rest_state(nominal, offset, bj.ModelOptions()) is not None:
+            truth = set_parameters(
+                nominal,
+                {n: f * float(get_parameter(nominal, n)) for n, f in scenario.offsets.items()},
+            )
+            at_zero = BogieTwin(truth, 50.0).qddot(0.0, np.zeros(10), np.zeros(10))
+            assert np.abs(at_zero).max() < 1e-10, name
+            held.append(name)
+    print("data start at zero:", held)
+    assert "default" in held
