@@ -25,30 +25,30 @@ jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 # The longest files first, so that no long file starts last while the other worker idles
 # (longest-processing-time order for xdist's `loadfile`; its own order, by number of tests,
 # `--no-loadscope-reorder` turns off, started the few-test files of minutes last). Order of the
-# files' measured times in a full run (2-core machine, 2026-11-26: 298 s for the first to 15 s
+# files' measured times in a full run (2-core machine, 2026-11-26: 239 s for the first to 13 s
 # for the last listed); the others follow in collection order.
 LONGEST_FIRST = (
     "test_monitor.py",
+    "test_notebooks.py",
     "test_gradients.py",
+    "test_identify.py",
+    "test_twin.py",
+    "test_equilibrium.py",
     "test_identify_objective.py",
     "test_run_corrections.py",
-    "test_twin.py",
-    "test_identify.py",
-    "test_notebooks.py",
     "test_cost.py",
+    "test_model.py",
     "test_simulate.py",
     "test_lead_in.py",
-    "test_model.py",
-    "test_equilibrium.py",
     "test_cli.py",
     "test_sensitivity.py",
     "test_defaults.py",
-    "test_identifiability.py",
     "test_jacobian_residuals.py",
     "test_measure.py",
+    "test_identifiability.py",
     "test_contact.py",
-    "test_closed_form_terms.py",
     "test_levenberg_marquardt.py",
+    "test_closed_form_terms.py",
     "test_chunked.py",
     "test_track.py",
 )
