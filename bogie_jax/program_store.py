@@ -35,6 +35,11 @@ def use_program_store(directory) -> None:
     _STORE["directory"] = None if directory is None else Path(directory)
 
 
+def program_store_directory() -> Path | None:
+    """Where exported batch programs are kept in this process (None: off)."""
+    return _STORE["directory"]
+
+
 @functools.cache
 def _environment() -> bytes:
     root = Path(__file__).parent

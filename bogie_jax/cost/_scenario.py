@@ -39,8 +39,8 @@ def synthetic_objective(
     the measurement. `settings` (and single `SolveSettings` fields as keywords) and `y0` go to
     `make_objective`; the data are simulated with the same solver, controller, `dt0` and start
     (`max_steps=100_000`): `y0`, else the truth's static equilibrium, which is zero where the
-    selected parameters cannot move it (`fixed_rest_state`, as the objective decides; the data
-    program then has no equilibrium solve either). Other keyword arguments (bounds, weights) go
+    selected parameters cannot move it (`fixed_rest_state`; the objective then starts there too,
+    and neither program has an equilibrium solve). Other keyword arguments (bounds, weights) go
     to `make_objective`.
     """
     solve_options = {k: objective_kwargs.pop(k) for k in SOLVE_OPTIONS if k in objective_kwargs}
@@ -48,10 +48,9 @@ def synthetic_objective(
     data_settings = SolveSettings(
         settings.solver, settings.stepsize_controller, max_steps=100_000, dt0=settings.dt0
     )
-    data_y0 = y0
-    if data_y0 is None:  # the truth is theta = 0 of the selection
+    if y0 is None:  # the truth is theta = 0 of the selection
         selection = select_parameters(params, names, bounds=objective_kwargs.get("bounds"))
-        data_y0 = fixed_rest_state(params, selection, options)
+        y0 = fixed_rest_state(params, selection, options)
     measurement = synthetic_measurement(
         params,
         track,
@@ -63,7 +62,7 @@ def synthetic_objective(
         track_reference=track_reference,
         options=options,
         settings=data_settings,
-        y0=data_y0,
+        y0=y0,
     )
     objective = make_objective(
         measurement, params, track, names, sensors=sensors, options=options, settings=settings,
