@@ -1,11 +1,22 @@
 """The verdict rule and the drift test: error rates from repeated random trials (counts stated
-in each test), the t tail against scipy, and bad input."""
+in each test), the t tail and quantile against scipy, the 95 % interval with a Monte Carlo
+variance, and bad input."""
+
+import math
 
 import numpy as np
 import pytest
 import scipy.stats
 
-from bogie_jax.monitor import ToleranceBand, decision_z, judge, trend, two_sided_p_value
+from bogie_jax.monitor import (
+    ToleranceBand,
+    decision_z,
+    judge,
+    satterthwaite_dof,
+    t_quantile,
+    trend,
+    two_sided_p_value,
+)
 
 
 BAND = ToleranceBand.relative(400e3, 0.2, unit="N s/m")  # healthy 320-480 kN s/m, failed < 100
@@ -70,6 +81,48 @@ def test_student_t_tail_matches_scipy(dof):
     for t in (0.1, 1.0, 2.5, 8.0):
         assert two_sided_p_value(t, dof) == pytest.approx(2 * scipy.stats.t.sf(t, dof), rel=1e-9)
     assert two_sided_p_value(1.96, None) == pytest.approx(0.05, abs=1e-4)
+
+
+@pytest.mark.parametrize("dof", [1, 2.5, 16, 17.7, 300])
+def test_student_t_quantile_matches_scipy(dof):
+    for p in (0.6, 0.975, 0.9975, 0.025):
+        assert t_quantile(p, dof) == pytest.approx(scipy.stats.t.ppf(p, dof), rel=1e-9)
+    assert t_quantile(0.975, math.inf) == pytest.approx(1.959964, abs=1e-6)
+    with pytest.raises(ValueError, match="probability"):
+        t_quantile(1.0, 3)
+
+
+def test_intervals_with_a_monte_carlo_variance_cover_95_percent():
+    """The monitor's situation: a standard error whose square is an exactly known variance plus
+    a variance estimated from 16 Monte Carlo draws (the track-record term, 90 % of the total).
+    Oracle: 20 000 simulated estimates with known normal errors. The Satterthwaite t interval
+    covers 95 % (binomial standard error 0.15 %); +- 1.96 standard errors covers about 93.7 %."""
+    rng = np.random.default_rng(7)
+    trials, draws = 20_000, 16
+    exact, term = 0.1, 0.9  # variances of the two parts of the error
+    error = rng.normal(0.0, math.sqrt(exact + term), trials)
+    estimated = np.mean(rng.normal(0.0, math.sqrt(term), (trials, draws)) ** 2, axis=1)
+    se = np.sqrt(exact + estimated)
+    dof = [satterthwaite_dof((exact, v), (math.inf, draws)) for v in estimated]
+    t = np.array([t_quantile(0.975, d) for d in dof])
+    covered_t = np.mean(np.abs(error) <= t * se)
+    covered_z = np.mean(np.abs(error) <= 1.959964 * se)
+    assert abs(covered_t - 0.95) < 0.005, covered_t
+    assert covered_z < 0.94, covered_z  # the normal quantile's shortfall the t one removes
+    assert satterthwaite_dof((1.0, 0.0), (math.inf, 16)) == math.inf
+    assert satterthwaite_dof((0.0, 2.0), (math.inf, 16)) == pytest.approx(16.0)
+
+
+def test_the_95_percent_interval_uses_the_standard_errors_degrees_of_freedom():
+    band = ToleranceBand((0.8, 1.2))
+    z = decision_z(0.05, 1)
+    exact = judge("c", 1.0, 0.01, band, z=z)
+    few = judge("c", 1.0, 0.01, band, z=z, dof=16)
+    assert exact.ci95 == pytest.approx((1 - 0.01959964, 1 + 0.01959964), rel=1e-6)
+    half = scipy.stats.t.ppf(0.975, 16) * 0.01
+    assert few.ci95 == pytest.approx((1 - half, 1 + half), rel=1e-9)
+    assert few.evidence["ci95_dof"] == 16 and exact.evidence["ci95_dof"] is None
+    assert few.verdict == exact.verdict == "healthy"
 
 
 def _series(rng, n, slope, scatter_factor=1.0):

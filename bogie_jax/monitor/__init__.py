@@ -58,12 +58,17 @@ from ._robust import (
     channel_weights as channel_weights,
     leverage as leverage,
 )
+from ._student_t import (
+    satterthwaite_dof as satterthwaite_dof,
+    t_quantile as t_quantile,
+    two_sided_p_value as two_sided_p_value,
+)
 from ._track_error import (
     TrackErrorEffect as TrackErrorEffect,
     record_error as record_error,
     track_error_effect as track_error_effect,
 )
-from ._trend import Trend as Trend, trend as trend, two_sided_p_value as two_sided_p_value
+from ._trend import Trend as Trend, trend as trend
 from ._verdict import (
     VERDICTS as VERDICTS,
     ToleranceBand as ToleranceBand,

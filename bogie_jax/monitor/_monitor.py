@@ -82,6 +82,7 @@ from ._nuisance import DEFAULT_NUISANCE, NuisanceLayout, check_nuisance
 from ._profile import profile_point
 from ._result import FitSummary, MonitorResult, RunStatus
 from ._robust import RunChannels, channel_variances, channel_weights
+from ._student_t import satterthwaite_dof
 from ._track_error import track_error_effect
 from ._verdict import check_false_alarm_rate, decision_z, judge
 
@@ -525,6 +526,12 @@ def _verdicts(
             for name, value, err, p0 in zip(extra_names, extra_values, se_extra, nominal_extra)
         }  # fmt: skip
         z = decision_z(alpha, len(coords))
+        # the 95 % intervals' degrees of freedom: the residual term's m - n (exact with the
+        # sensors' nominal noise), the track term's its Monte Carlo draws
+        dofs = (
+            math.inf if noise == "nominal" or dof <= 0 else dof,
+            max(track_effect.draws, 1) if track_effect is not None else math.inf,
+        )
         for j, (c, value, err, err_gn) in enumerate(zip(coords, values, se, se_gn)):
             ratio = float(err / err_gn) ** 2 if np.isfinite(err) and err_gn > 0 else 1.0
 
@@ -534,6 +541,7 @@ def _verdicts(
             v = judge(
                 c.name, value, err, c.band, z=z, identifiable=fit.status != "failed",
                 profile=profile,
+                dof=satterthwaite_dof((se_residual[j] ** 2, track_p[j, j]), dofs),
             )  # fmt: skip
             v.evidence.update(
                 runs_used=used,

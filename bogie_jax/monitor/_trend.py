@@ -14,10 +14,10 @@ degrees of freedom, so estimates whose errors were underestimated do not raise f
 
 import dataclasses
 import math
-from statistics import NormalDist
 
 import numpy as np
 
+from ._student_t import two_sided_p_value
 from ._verdict import ToleranceBand, check_false_alarm_rate
 
 
@@ -145,45 +145,6 @@ def trend(
         p_value=p_value,
         days_to_band_edge=_days_to_edge(level, slope, band) if drift else None,
     )
-
-
-def two_sided_p_value(statistic: float, dof: int | None) -> float:
-    """P(|X| > statistic) for X standard normal (`dof` None) or Student's t with `dof`."""
-    if dof is None:
-        return 2 * (1 - NormalDist().cdf(statistic))
-    # Student's t tail by the regularised incomplete beta function, I_x(dof/2, 1/2)
-    # with x = dof / (dof + t^2) (Abramowitz & Stegun 26.7.1 and 26.5.27)
-    return _regularised_beta(dof / (dof + statistic**2), dof / 2, 0.5)
-
-
-def _regularised_beta(x: float, a: float, b: float) -> float:
-    """I_x(a, b) by its continued fraction (Numerical Recipes, 3rd ed., 6.4), 0 <= x <= 1."""
-    if x <= 0:
-        return 0.0
-    if x >= 1:
-        return 1.0
-    log_front = (
-        math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x) + b * math.log1p(-x)
-    )
-    if x > (a + 1) / (a + b + 2):
-        return 1.0 - _regularised_beta(1 - x, b, a)
-    # modified Lentz evaluation of the continued fraction
-    tiny, c, d = 1e-300, 1.0, 1.0 - (a + b) * x / (a + 1)
-    d = 1 / (d if abs(d) > tiny else tiny)
-    h = d
-    for m in range(1, 300):
-        for numerator in (
-            m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m)),
-            -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1)),
-        ):
-            d = 1 + numerator * d
-            d = 1 / (d if abs(d) > tiny else tiny)
-            c = 1 + numerator / c
-            c = c if abs(c) > tiny else tiny
-            h *= d * c
-        if abs(d * c - 1) < 1e-15:
-            break
-    return math.exp(log_front) * h / a
 
 
 def _days_to_edge(level: float, slope: float, band: ToleranceBand | None) -> float | None:

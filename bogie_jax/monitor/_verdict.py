@@ -28,16 +28,23 @@ Decision rule (documented in the README, "Verdict rules"):
   band (then no value of the estimate could show the element healthy).
 - `healthy`: otherwise: the data give no evidence, at level alpha, that the element left its band.
 
-The reported 95 % interval is estimate +- 1.96 standard errors, independent of `alpha`.
+The reported 95 % interval is estimate +- t standard errors, independent of `alpha`: t the
+0.975 quantile of Student's t with the standard error's effective degrees of freedom (`dof`;
+1.96 for an exactly known variance). `monitor` gives the Welch-Satterthwaite degrees of freedom
+of its track-record term, a Monte Carlo estimate from 16 draws that dominates its standard
+errors (`_student_t.py`): with 1.96 the intervals covered 93 % of 2000 true values in the
+detection benchmark (88-97 % per element), with the t quantile 94 % (91-98 %). The decision
+level z stays the normal quantile (see the README's verdict rules for what that costs).
 """
 
 import dataclasses
 import math
 from statistics import NormalDist
 
+from ._student_t import t_quantile
+
 
 VERDICTS = ("healthy", "degraded", "failed", "not identifiable")
-Z95 = NormalDist().inv_cdf(0.975)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,7 +104,7 @@ class Verdict:
     """The verdict on one element (or a group the sensors cannot split).
 
     - `name`: element or group name; `verdict`: one of `VERDICTS`;
-    - `estimate`, `std_error` [unit]; `ci95`: estimate +- 1.96 standard errors;
+    - `estimate`, `std_error` [unit]; `ci95`: the 95 % interval (module docstring);
     - `band`: the `ToleranceBand`; `evidence`: the decision interval, its z and the reason.
     """
 
@@ -167,9 +174,11 @@ def judge(
     z: float,
     identifiable: bool = True,
     profile=None,
+    dof: float = math.inf,
 ) -> Verdict:
     """The verdict on one element by the rule of the module docstring (`z` from `decision_z`;
-    `profile`: `None` or `limit -> ProfilePoint`, the profile test at a limit [unit])."""
+    `profile`: `None` or `limit -> ProfilePoint`, the profile test at a limit [unit]; `dof`:
+    the standard error's degrees of freedom, for the 95 % interval)."""
     estimate, std_error = float(estimate), float(std_error)
     lo, hi = estimate - z * std_error, estimate + z * std_error
     h_lo, h_hi = band.healthy
@@ -196,7 +205,8 @@ def judge(
         else:
             verdict, reason = "healthy", "the data do not put the element outside its healthy band"
     evidence["reason"] = reason
-    half = Z95 * std_error
+    evidence["ci95_dof"] = float(dof) if math.isfinite(dof) else None
+    half = t_quantile(0.975, dof) * std_error
     return Verdict(
         name, verdict, estimate, std_error, (estimate - half, estimate + half), band, evidence
     )
