@@ -264,6 +264,7 @@ def run_case(cfg: dict, index: int) -> dict:
             "estimate": v.estimate,
             "std_error": v.std_error,
             "ci95": list(v.ci95),
+            "ci95_dof": v.evidence.get("ci95_dof"),
             "healthy_band": list(v.band.healthy),
             "members": list(v.evidence.get("members") or [v.name]),
             "identifiable": v.evidence.get("identifiable", ""),

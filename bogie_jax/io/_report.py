@@ -220,8 +220,9 @@ def _standard_errors(fit) -> str:
     else:
         how = f"Gauss-Newton with residual variance {_g(fit.get('sigma2'), 3)}"
     return (
-        f"- Standard errors: {bias}{how} ({sigma2}); the 95 % interval is estimate +- 1.96 "
-        "standard errors."
+        f"- Standard errors: {bias}{how} ({sigma2}); the 95 % interval is estimate +- t "
+        "standard errors, t the 0.975 quantile of Student's t with the standard error's degrees "
+        "of freedom (`ci95_dof` in `verdicts.json`; 1.96 where they are unbounded)."
     )
 
 
