@@ -127,8 +127,10 @@ def plot_signal_fit(
 
 
 def plot_trend(trend, *, band=None, unit: str = "", ax=None):
-    """One element's estimates over the dated runs (95 % error bars), the weighted regression
-    line of `bogie_jax.monitor.trend`, and the healthy band; the title carries the drift flag.
+    """One element's estimates over the dated runs (error bars +- 1.96 standard errors: the
+    trend uses the standard errors only, and a verdict's own 95 % interval can be wider, see
+    `bogie_jax.monitor.judge`), the weighted regression line of `bogie_jax.monitor.trend`, and
+    the healthy band; the title carries the drift flag.
 
     **Arguments:** `trend`: a `bogie_jax.monitor.Trend` (or its `to_dict()` with `times` added);
     `band`: the element's `ToleranceBand` or its dictionary (shaded), or `None`; `unit` of the
@@ -140,7 +142,7 @@ def plot_trend(trend, *, band=None, unit: str = "", ax=None):
     p = np.asarray(d["estimates"], dtype=float)
     s = np.asarray(d["std_errors"], dtype=float)
     ax = get_axes(ax, (7, 3.2))
-    ax.errorbar(t, p, yerr=1.96 * s, fmt="o", capsize=3, color="C0", label="estimate, 95 %")
+    ax.errorbar(t, p, yerr=1.96 * s, fmt="o", capsize=3, color="C0", label="estimate +- 1.96 SE")
     line = d["level"] + d["slope_per_day"] * (t - t[-1])
     ax.plot(t, line, "-", color="C1", label=f"trend {d['slope_per_day']:+.3g} {unit}/day")
     if band is not None:
