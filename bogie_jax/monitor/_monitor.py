@@ -526,8 +526,9 @@ def _verdicts(
             for name, value, err, p0 in zip(extra_names, extra_values, se_extra, nominal_extra)
         }  # fmt: skip
         z = decision_z(alpha, len(coords))
-        # the 95 % intervals' degrees of freedom: the residual term's m - n (exact with the
-        # sensors' nominal noise), the track term's its Monte Carlo draws
+        # degrees of freedom of the two variance terms, for the 95 % intervals: m - n for the
+        # residual term (unbounded with the sensors' nominal noise), the Monte Carlo draws for
+        # the track term
         dofs = (
             math.inf if noise == "nominal" or dof <= 0 else dof,
             max(track_effect.draws, 1) if track_effect is not None else math.inf,

@@ -16,7 +16,7 @@ import math
 from statistics import NormalDist
 
 
-def two_sided_p_value(statistic: float, dof: int | None) -> float:
+def two_sided_p_value(statistic: float, dof: float | None) -> float:
     """P(|X| > statistic) for X standard normal (`dof` None) or Student's t with `dof`."""
     if dof is None:
         return 2 * (1 - NormalDist().cdf(statistic))
