@@ -13,8 +13,8 @@ NOTEBOOKS = sorted((Path(__file__).parents[1] / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT = 900  # [s] one cell; a whole notebook should take under 3 minutes (README)
 # By default the suite runs notebooks 01 and 02 in a kernel (85 s and 43 s cold, 2026-11-26,
 # 2-core CPU). The others run with `pytest -m heavy` (README, "Tests"), to keep the suite under
-# 20 minutes: 03 (142 s, most of it compiling four programs), 04 (92 s) and 05 (102 s), measured
-# with the cache cold on the same machine and day.
+# 20 minutes: 03 (142-150 s, most of it compiling four programs), 04 (92 s) and 05 (92-102 s),
+# measured with the cache cold on the same machine and day.
 DEFAULT_KERNEL_RUNS = ("01_forward_model_and_hunting.ipynb", "02_sensitivity.ipynb")
 KERNEL_RUNS = [
     pytest.param(p, marks=() if p.name in DEFAULT_KERNEL_RUNS else pytest.mark.heavy)
