@@ -5,7 +5,8 @@ the slowest one is done: one multistart fit that runs to its step limit makes th
 wait (lock-step). Here each device holds a few *lanes*; every iteration advances all lanes by one
 step of their member, and a lane whose member has finished writes its output and starts the next
 member of its device's queue. The batch then costs about the sum of its members' steps divided
-by the lanes, plus one tail; members need not take equal numbers of steps.
+by the lanes, plus one tail; members need not take equal numbers of steps. A device with one
+lane steps its member without `vmap` (a smaller program, and no batched branches or loops).
 
 A member is an `IterativeMember`: `init(x) -> carry`, `step(carry) -> carry`,
 `done(carry) -> bool` and `output(carry) -> pytree`. The members are split over the devices in
@@ -52,6 +53,11 @@ def _where(pred, new, old):
     return jax.tree.map(pick, new, old)
 
 
+def _one_lane(fn):
+    """`jax.vmap(fn)` for a leading axis of size 1, without batching `fn`'s trace."""
+    return lambda x: jax.tree.map(lambda a: a[None], fn(jax.tree.map(lambda a: a[0], x)))
+
+
 def _device_queue(member: IterativeMember, lanes: int, post: Callable | None):
     """`items -> outputs` for one device's queue (leading axis = member)."""
 
@@ -59,7 +65,8 @@ def _device_queue(member: IterativeMember, lanes: int, post: Callable | None):
         m = _batch_size(items)
         k = min(lanes, m)
         take = lambda idx: jax.tree.map(lambda x: x[idx], items)
-        init = jax.vmap(member.init)
+        lanes_map = jax.vmap if k > 1 else _one_lane
+        init = lanes_map(member.init)
         carry = init(take(jnp.arange(k)))
         out_shape = jax.eval_shape(member.output, jax.tree.map(lambda x: x[0], carry))
         outputs = jax.tree.map(lambda s: jnp.zeros((m, *s.shape), s.dtype), out_shape)
@@ -74,14 +81,14 @@ def _device_queue(member: IterativeMember, lanes: int, post: Callable | None):
             # an idle lane (its queue is empty) is stepped with the others but stays frozen, as a
             # finished member of a vmapped while_loop does (it re-evaluates its last point rather
             # than iterating on past its end)
-            carry = _where(active, jax.vmap(member.step)(carry), carry)
-            finished = jax.vmap(member.done)(carry) & active
+            carry = _where(active, lanes_map(member.step)(carry), carry)
+            finished = lanes_map(member.done)(carry) & active
             # write finished members (index m is out of range and dropped)
             where = jnp.where(finished, index, m)
             outputs = jax.tree.map(
                 lambda o, v: o.at[where].set(v, mode="drop"),
                 outputs,
-                jax.vmap(member.output)(carry),
+                lanes_map(member.output)(carry),
             )
             new_index = jnp.where(finished, next_index + jnp.cumsum(finished) - 1, index)
             next_index = next_index + jnp.sum(finished)

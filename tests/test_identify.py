@@ -3,6 +3,8 @@
 Problems are module-level so that compiled solves are shared between tests (runtime budget).
 """
 
+import types
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -26,6 +28,7 @@ from bogie_jax.identify import (
     fit_hybrid,
     fit_multistart,
     local_methods,
+    queue_lanes,
     simulated_annealing,
     supports_queue,
     t_quantile,
@@ -245,6 +248,20 @@ def test_queue_takes_only_the_householder_gauss_newton_family():
     assert all(supports_queue(as_method(m)) for m in ("lm", "gauss-newton", "dogleg"))
     assert not supports_queue(as_method("bfgs"))
     assert not supports_queue(LeastSquaresMethod(optx.LevenbergMarquardt(1e-8, 1e-8)))
+
+
+def test_auto_lanes_one_fit_per_cpu_device_many_per_accelerator():
+    """`lanes="auto"`: one fit in flight per CPU device (stepped without `vmap`), about 32
+    residual tangents per step, ceil(32 / (n + 1)) fits, on an accelerator."""
+    cpu = jax.devices("cpu")
+    assert queue_lanes("auto", 3, cpu) == 1 and queue_lanes("auto", 10, cpu[:1]) == 1
+    gpu = [types.SimpleNamespace(platform="gpu")]
+    assert queue_lanes("auto", 3, gpu) == 8 and queue_lanes("auto", 10, gpu) == 3
+    assert queue_lanes("auto", 40, gpu) == 1
+    assert queue_lanes("auto", 3, [*cpu, *gpu]) == 8  # any accelerator among the devices
+    assert queue_lanes(5, 3) == 5 and queue_lanes(None, 3) is None
+    with pytest.raises(ValueError, match="`lanes` must be"):
+        queue_lanes(0, 3)
 
 
 # --- annealing and hybrid ----------------------------------------------------------------

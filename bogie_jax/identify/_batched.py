@@ -48,7 +48,7 @@ class BatchedFits:
         self.method = as_method(method)
         method_ = self.method
         static = self.static
-        lanes = queue_lanes(lanes, len(as_problem(objective).transform.lower))
+        lanes = queue_lanes(lanes, len(as_problem(objective).transform.lower), devices)
         self.queued = lanes is not None and schedule is None and supports_queue(method_)
         # what the compiled batch closes over, for the program store (`bogie_jax.batch`)
         identity = ("bogie_jax.identify.BatchedFits", static, method_, max_steps, lanes, schedule)

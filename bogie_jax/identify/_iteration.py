@@ -13,6 +13,7 @@ Gauss-Newton, Dogleg) is stepped this way: their `postprocess` returns the itera
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import optimistix as optx
 
@@ -103,18 +104,25 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
     return IterativeMember(init=init, step=step, done=done, output=output)
 
 
-def queue_lanes(lanes, n_params: int) -> int | None:
+def queue_lanes(lanes, n_params: int, devices=None) -> int | None:
     """Lanes per device for a queued batch: an int as given, `None` (lock-step) as given, or
-    `"auto"`: about 32 residual tangents per device and step, `ceil(32 / (n + 1))` fits.
+    `"auto"`: one fit per device on CPU devices, about 32 residual tangents per device and step,
+    `ceil(32 / (n + 1))` fits, on accelerators (`devices`: those of the batch, default all).
 
-    `"auto"` is a heuristic, not a measured optimum: each fit's forward-mode Jacobian already
-    carries `n` tangents, so fewer fits are needed to fill the vector units as `n` grows. With it
-    the 32-start batch on 2 CPU devices beat a loop of the same fits 3.0x, 2.5x and 2.5x at 3, 6
-    and 10 parameters (`benchmarks/README.md`).
+    On a CPU device (one core) vmapping fits buys no parallelism: a vmapped fit evaluates both
+    sides of its branches and steps every lane's ODE solve until the slowest lane's ends, and
+    its program is traced and compiled with a batch axis. One lane is stepped without `vmap`
+    (`bogie_jax.queued_batch`). Measured on 2 CPU devices, the same fits with one lane against
+    `ceil(32 / (n + 1))` (`benchmarks/README.md`): 3 parameters, 8 starts: fits 7.8-8.6 s
+    against 9.8-10.1 s, compile 30-32 s against 38-41 s; 32 starts: 44.8 s against 56.4 s;
+    10 parameters, 16 starts: 113 s against 139 s. On a GPU the lanes are its parallelism.
     """
     if lanes is None:
         return None
     if lanes == "auto":
+        devices = jax.devices() if devices is None else devices
+        if all(d.platform == "cpu" for d in devices):
+            return 1
         return max(1, math.ceil(32 / (n_params + 1)))
     if isinstance(lanes, str) or int(lanes) < 1:
         raise ValueError(f'`lanes` must be "auto", None or an int >= 1, got {lanes!r}')

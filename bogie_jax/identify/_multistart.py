@@ -281,7 +281,7 @@ def fit_multistart(
         thetas = design_starts(problem, key, n_starts, design)
     else:
         thetas = jnp.stack([start_theta(problem.transform, s) for s in np.atleast_2d(starts)])
-    lanes = queue_lanes(lanes, thetas.shape[1])
+    lanes = queue_lanes(lanes, thetas.shape[1], devices)
     tic = time.perf_counter()
     if lanes is not None and supports_queue(method):
         run = queued_fits(method, lambda _: problem, max_steps, lanes=lanes, devices=devices)
