@@ -17,7 +17,7 @@ design per trial) and method:
   forward-mode Jacobian) and wall time (after compilation).
 
 Methods: single-start LM (from the nominal values), multistart LM (`--starts`, LHS design, one
-vmapped batch sharded over the 2 CPU devices: a queue with `--lanes` fits in flight per device,
+batch sharded over the 2 CPU devices: a queue with `--lanes` fits in flight per device,
 or `--lanes 0` every start at once in lock-step), BFGS and Nelder-Mead and pattern search (from the
 nominal values), simulated annealing (one chain of `--sa-iter` evaluations from the nominal
 values) and the hybrid (`--hybrid-chains` annealing chains of `--hybrid-iter`, then LM from each
@@ -406,7 +406,8 @@ def _batch_kind(settings):
     lanes = settings.get("lanes")  # absent in runs before the queue: lock-step
     if lanes in (None, "0", 0):
         return "lock-step: every start at once"
-    return f"queued: {lanes} lanes per device" + (", ceil(32 / (n + 1))" if lanes == "auto" else "")
+    auto = ", `queue_lanes`: 1 on CPU devices, else ceil(32 / (n + 1))" if lanes == "auto" else ""
+    return f"queued: {lanes} lanes per device{auto}"
 
 
 def markdown(results, loops, covers, settings):

@@ -1,11 +1,11 @@
 """Fits in flight per CPU device: one lane (stepped without `vmap`) against ceil(32 / (n + 1)).
 
-Each case runs in a fresh process without a compilation cache (the command line's set-up:
-every core a device, float64): the scenario's noisy data (seed 1, ODE rtol 1e-6, as
-`bogie-jax identify`), then `fit_multistart_chunked` (LM, 100 steps, LHS starts, key 0) with
-the given lanes. It records the batch's compile time, the fits' wall time, the statistics, the
-best and median cost and the failed starts; the two lane counts alternate case by case, so
-that a drift of the machine falls on both.
+Each case runs in a fresh process without a compilation cache, set up as the command line sets
+up a 2-core CPU (2 devices, float64, `EQX_ON_ERROR=nan`): the scenario's noisy data (seed 1,
+ODE rtol 1e-6, as `bogie-jax identify`), then `fit_multistart_chunked` (LM, 100 steps, LHS
+starts, key 0) with the given lanes. It records the batch's compile time, the fits' wall time,
+the statistics, the best and median cost and the failed starts; the two lane counts alternate
+case by case, so that a drift of the machine falls on both.
 
 Run (from the repository root): `python benchmarks/lanes.py` (about 10 minutes on 2 cores);
 `--cases default:8:4,default:32:32,all10:16:16` (scenario:starts:chunk) and `--name`.
@@ -14,6 +14,7 @@ Run (from the repository root): `python benchmarks/lanes.py` (about 10 minutes o
 import argparse
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -21,13 +22,20 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+# before JAX is imported, here and in the children
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+os.environ.setdefault("EQX_ON_ERROR", "nan")
+
+
+def _setup_jax() -> None:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
 
 
 def child(scenario: str, starts: int, chunk: int, lanes: int) -> dict:
     """One case in this (fresh) process; returns its record."""
-    from bogie_jax.cli import _setup
-
-    _setup.prepare(use_cache=False)
+    _setup_jax()
     import jax.random as jr
     import numpy as np
 
@@ -90,9 +98,7 @@ def main() -> None:
         scenario, starts, chunk, lanes = args.child.split(":")
         print(json.dumps(child(scenario, int(starts), int(chunk), int(lanes))))
         return
-    from bogie_jax.cli import _setup
-
-    _setup.prepare(use_cache=False)  # the children's devices, for the environment record
+    _setup_jax()  # the children's devices, for the environment record
     from benchmarks._common import environment, write_outputs
     from bogie_jax.identify import SCENARIOS
 

@@ -5,7 +5,7 @@ One short run (`primary3` scenario: 0.25 s at 50 m/s, 100 Hz, all 13 default cha
 true primary.kz, primary.cz and yaw_dampers.c offset +15 %, -10 %, +10 % from nominal, searched
 inside the +-50 % tolerance band. Data and fits share the solver (Tsit5, PID rtol 1e-8), so the
 noise-free minimum sits exactly at the truth. The residual Jacobian is taken in forward mode.
-Compiled objects are shared: the problem is a module fixture; one vmapped LM batch (the objective
+Compiled objects are shared: the problem is a module fixture; one LM batch (the objective
 an input of the compiled program, `bogie_jax.identify._batched`) serves the noise-free multistart,
 the noisy trials (one data set per member, their intervals from the Jacobian each fit ended with)
 and both command runs. Measured alone (2-core CPU, cold, 2026-11-26): the data 19 s, the batch's
@@ -283,7 +283,7 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
     the same estimates where the fit is well determined (not on a bound).
 
     Why the two differ at all: same solver and starts, but two compiled programs (the batch
-    steps each fit as a vmapped lane of a queue inside `shard_map`, `fit` runs optimistix's
+    steps each fit as a lane of a queue inside `shard_map`, `fit` runs optimistix's
     loop unbatched). XLA vectorises and fuses them differently, and the adaptive ODE steps turn
     those last-bit differences into different step sequences, so the objective itself differs
     at the solver's error level: at one theta the residuals of an unbatched and a vmapped

@@ -33,7 +33,7 @@ def add_parser(subparsers):
         "identify",
         help="identify suspension parameters (multistart least squares)",
         description="Identify the selected parameters by local fits from many space-filling "
-        "starts inside their tolerance band (one vmapped batch per chunk of starts). Without "
+        "starts inside their tolerance band (one compiled batch per chunk of starts). Without "
         "--data or --scenario the 'default' synthetic scenario (known true parameters) is used.",
     )
     src = p.add_mutually_exclusive_group()

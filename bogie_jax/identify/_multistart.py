@@ -1,12 +1,13 @@
-"""Multistart: space-filling starts inside the bounds, all local fits as one vmapped batch.
+"""Multistart: space-filling starts inside the bounds, all local fits as one sharded batch.
 
 LM, Gauss-Newton and Dogleg fits run as a queue by default (`bogie_jax.queued_batch`: a few fits
-in flight per device, a lane whose fit has ended takes the next start), so no device waits for
-its slowest fit; `lanes=None`, and the other methods, run every start at once in lock-step
-through `bogie_jax.batch.batch_runner` (in chunks). Both spread the starts over the devices and
-run optimistix's own iteration, so they agree up to rounding (vmaps of different widths can
-round differently; `benchmarks/README.md` compares their speed). A
-failed start (non-finite output or unsuccessful solver status) is reported, never raised.
+in flight per device, vmapped where a device holds several, see `queue_lanes`; a lane whose fit
+has ended takes the next start), so no device waits for its slowest fit; `lanes=None`, and the
+other methods, run every start at once in lock-step through `bogie_jax.batch.batch_runner` (in
+chunks). Both spread the starts over the devices and run optimistix's own iteration, so they
+agree up to rounding (vmaps of different widths can round differently; `benchmarks/README.md`
+compares their speed). A failed start (non-finite output or unsuccessful solver status) is
+reported, never raised.
 Distinct minima are clustered on the host in box-normalised coordinates.
 """
 
@@ -258,7 +259,7 @@ def fit_multistart(
     bound_tol: float = 1e-6,
     throw: bool = True,
 ) -> MultistartResult:
-    """Local fits from `n_starts` space-filling starts, run as one vmapped, sharded batch.
+    """Local fits from `n_starts` space-filling starts, run as one sharded batch.
 
     **Arguments:**
     - `problem`: a `LeastSquaresProblem` or an `Objective`.
