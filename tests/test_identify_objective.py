@@ -284,10 +284,11 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
 
     Why the two differ at all: same solver and starts, but two compiled programs (the batch
     steps each fit as a lane of a queue inside `shard_map`, `fit` runs optimistix's
-    loop unbatched). XLA vectorises and fuses them differently, and the adaptive ODE steps turn
+    loop). XLA vectorises and fuses them differently, and the adaptive ODE steps turn
     those last-bit differences into different step sequences, so the objective itself differs
     at the solver's error level: at one theta the residuals of an unbatched and a vmapped
-    program differ by up to 1.6e-4 (noise-weighted; max |r| 1.7e-4 near the truth), the costs
+    program (the lanes were vmapped until one lane per CPU device was stepped without `vmap`)
+    differ by up to 1.6e-4 (noise-weighted; max |r| 1.7e-4 near the truth), the costs
     by 4e-4 at J = 2055 (measured at the ends of this batch). Each path stops where its own
     cost stops falling by more than that: near the truth (J ~ 1e-8) the estimates agree to
     ~3e-7. Start 0 ends at a bound instead (primary.kz on its upper bound, yaw_dampers.c 3e-5

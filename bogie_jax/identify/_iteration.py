@@ -111,11 +111,12 @@ def queue_lanes(lanes, n_params: int, devices=None) -> int | None:
 
     On a CPU device (one core) vmapping fits buys no parallelism: a vmapped fit evaluates both
     sides of its branches and steps every lane's ODE solve until the slowest lane's ends, and
-    its program is traced and compiled with a batch axis. One lane is stepped without `vmap`
-    (`bogie_jax.queued_batch`). Measured on 2 CPU devices, the same fits with one lane against
-    `ceil(32 / (n + 1))` (`benchmarks/README.md`): 3 parameters, 8 starts: fits 7.8-8.6 s
-    against 9.8-10.1 s, compile 30-32 s against 38-41 s; 32 starts: 44.8 s against 56.4 s;
-    10 parameters, 16 starts: 113 s against 139 s. On a GPU the lanes are its parallelism.
+    JAX batches the differentiated solve when it traces the program. One lane is stepped
+    without `vmap` (`bogie_jax.queued_batch`). Measured on 2 CPU devices, the same fits with one
+    lane against `ceil(32 / (n + 1))` (`benchmarks/results/lanes.md`): 3 parameters, 8 starts
+    in chunks of 4: 9.2 s against 10.3 s; 32 starts: 39.2 s against 66.7 s; 10 parameters, 16
+    starts: 132 s against 139 s; the 3-parameter batch traces in 6.2 s instead of 8.9 s. On a
+    GPU the lanes are its parallelism.
     """
     if lanes is None:
         return None
