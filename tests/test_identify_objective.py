@@ -52,6 +52,7 @@ except ImportError:  # tests/ imported as a package
 
 
 DURATION, RATE, MAX_STEPS, N_STARTS = 0.25, 100.0, 100, 4
+NEAR_BOUND = 1e-4  # ends this close to a bound (fraction of the box width) count as on it
 _FIT_STATISTICS = eqx.filter_jit(fit_statistics)
 
 
@@ -301,10 +302,13 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
     not make that point well defined (there is no stationary point, and the two objectives
     differ): with rtol = atol = 1e-12 instead of 1e-10, `fit` stopped at the same four points
     (same step counts) and the batch at 599997.9 N s/m (57 steps), 5e-6 on the other side. So
-    the estimates of a start on a bound are not compared; its status, cost and flags are."""
+    the estimates of a start on a bound are not compared; its status, cost and the bounds it
+    ends at are, within `NEAR_BOUND` (1e-4) of the box width: `statistics`' own flag (1e-6)
+    falls inside that spread. Measured 2026-11-27, one lane per CPU device (the batch unbatched
+    inside its queue): the batch ended at 599999.67 N s/m (1 - u = 8e-7, flagged) and `fit` at
+    599999.20 N s/m (2.0e-6, not flagged)."""
     lower = np.asarray(clean.objective.selection.lower)
     upper = np.asarray(clean.objective.selection.upper)
-    bound_tol = 1e-6  # `fit`'s default: a fraction of the box width
     compared = 0
     for k, (start, end, cost) in enumerate(
         zip(multistart4.starts, multistart4.ends, multistart4.costs)
@@ -314,12 +318,12 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
         # (J ~ 1e-8 where the noise-free fits stop: the stopping point depends on rounding; at a
         # minimum on a bound the cost is not stationary, so it moves with the estimate: 1e-5)
         np.testing.assert_allclose(float(single.cost), cost, rtol=1e-5, atol=1e-6)
-        # both ends on the same bounds (the flags of `statistics`, from the sharded end)
-        u = (end - lower) / (upper - lower)
-        on_bound = np.asarray(single.on_bound)
-        np.testing.assert_array_equal((u < bound_tol) | (u > 1.0 - bound_tol), on_bound)
-        if not on_bound.any():
-            np.testing.assert_allclose(single.estimates, end, rtol=1e-5)
+        # both ends at the same bounds, within `NEAR_BOUND` of the box width (see above)
+        near = lambda x: np.minimum(x - lower, upper - x) / (upper - lower) < NEAR_BOUND
+        single_end = np.asarray(single.estimates)
+        np.testing.assert_array_equal(near(end), near(single_end))
+        if not near(end).any():
+            np.testing.assert_allclose(single_end, end, rtol=1e-5)
             compared += 1
     # the check cannot pass on bounds alone (with this key: starts 1-3 interior, 0 on a bound)
     assert compared >= N_STARTS - 1
