@@ -9,7 +9,7 @@ Jacobian at each start's end, compiled alone (`residual_jacobian`, one device) a
 median of 5 calls. Every LM step evaluates the residuals and the Jacobian once, at its trial
 point; a device runs the starts of its block of each chunk one after the other. So a chunk's
 predicted time is the largest, over the devices, of (the device's starts' steps) x (the
-evaluation time), and each start's predicted time is its steps x the evaluation time.
+evaluation time). The queue does not time its starts one by one, so the check is per chunk.
 
 Run (from the repository root): `python benchmarks/fit_time.py` (about 2 minutes on 2 cores).
 """
