@@ -1,14 +1,17 @@
-"""Fits in flight per CPU device: one lane (stepped without `vmap`) against ceil(32 / (n + 1)).
+"""Fits in flight per device: one lane (stepped without `vmap`) against ceil(32 / (n + 1)).
 
 Each case runs in a fresh process without a compilation cache, set up as the command line sets
-up a 2-core CPU (2 devices, float64, `EQX_ON_ERROR=nan`): the scenario's noisy data (seed 1,
-ODE rtol 1e-6, as `bogie-jax identify`), then `fit_multistart_chunked` (LM, 100 steps, LHS
-starts, key 0) with the given lanes. It records the batch's compile time, the fits' wall time,
-the statistics, the best and median cost and the failed starts; the two lane counts alternate
-case by case, so that a drift of the machine falls on both.
+up a 2-core CPU (2 devices, float64, `EQX_ON_ERROR=nan`; on a GPU machine its one GPU is the
+device): the scenario's noisy data (seed 1, ODE rtol 1e-6, as `bogie-jax identify`), then
+`fit_multistart_chunked` (LM, 100 steps, LHS starts, key 0) with the given lanes. It records
+the batch's compile time, the fits' wall time, the statistics, the best and median cost and the
+failed starts; the two lane counts alternate case by case, so that a drift of the machine falls
+on both.
 
 Run (from the repository root): `python benchmarks/lanes.py` (about 10 minutes on 2 cores);
-`--cases default:8:4,default:32:32,all10:16:16` (scenario:starts:chunk) and `--name`.
+`--cases default:8:4,default:32:32,all10:16:16` (scenario:starts:chunk) and `--name`;
+`--render` rewrites `results/NAME.md` from `results/NAME.json` (a run copied from another
+machine).
 """
 
 import argparse
@@ -68,10 +71,11 @@ def child(scenario: str, starts: int, chunk: int, lanes: int) -> dict:
 
 
 def markdown(records, env) -> str:
+    kind = "CPU" if env["device"] == "cpu" else env["device"]
     lines = [
-        "# Fits in flight per CPU device: 1 lane against ceil(32 / (n + 1))",
+        "# Fits in flight per device: 1 lane against ceil(32 / (n + 1))",
         "",
-        f"{env['n_devices']} CPU devices ({env['platform']}), jax {env['jax']}, commit "
+        f"{env['n_devices']} {kind} device(s) ({env['platform']}), jax {env['jax']}, commit "
         f"{env['commit']}; each case in a fresh process, no compilation cache; LM, 100 steps, "
         "ODE rtol 1e-6, noisy data (seed 1). Times in seconds.",
         "",
@@ -92,8 +96,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cases", default="default:8:4,default:32:32,all10:16:16")
     parser.add_argument("--name", default="lanes")
+    parser.add_argument("--render", action="store_true", help="NAME.md from NAME.json")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.render:
+        payload = json.loads((ROOT / "benchmarks" / "results" / f"{args.name}.json").read_text())
+        text = markdown(payload["records"], payload["environment"])
+        (ROOT / "benchmarks" / "results" / f"{args.name}.md").write_text(text)
+        print(text)
+        return
     if args.child:
         scenario, starts, chunk, lanes = args.child.split(":")
         print(json.dumps(child(scenario, int(starts), int(chunk), int(lanes))))

@@ -24,6 +24,7 @@ from bogie_jax.identify import (
     anneal_steps,
     anneal_theta,
     as_method,
+    default_chunk,
     fit,
     fit_hybrid,
     fit_multistart,
@@ -262,6 +263,17 @@ def test_auto_lanes_one_fit_per_cpu_device_many_per_accelerator():
     assert queue_lanes(5, 3) == 5 and queue_lanes(None, 3) is None
     with pytest.raises(ValueError, match="`lanes` must be"):
         queue_lanes(0, 3)
+
+
+def test_default_chunk_saves_every_two_fits_per_cpu_device_and_fills_an_accelerator():
+    """A chunk holds two fits per CPU device (each steps one at a time) and every lane of an
+    accelerator (its parallelism), at least two per device."""
+    cpu = jax.devices("cpu")
+    gpu = [types.SimpleNamespace(platform="gpu")]
+    assert default_chunk("auto", 3, cpu) == 2 * len(cpu)
+    assert default_chunk("auto", 3, gpu) == 8 and default_chunk("auto", 10, gpu) == 3
+    assert default_chunk("auto", 40, gpu * 2) == 4  # one lane each, still two per device
+    assert default_chunk(5, 3, cpu[:1]) == 5 and default_chunk(None, 3, gpu) == 8
 
 
 # --- annealing and hybrid ----------------------------------------------------------------

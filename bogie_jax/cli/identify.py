@@ -62,7 +62,10 @@ def add_parser(subparsers):
         "--chunk",
         type=int,
         default=None,
-        help="starts per chunk (default: 2 per device); results are saved per chunk",
+        help=(
+            "starts per chunk (default: 2 per CPU device, one per fit in flight on an "
+            "accelerator); results are saved per chunk"
+        ),
     )
     p.add_argument("--out", default="identify_out", help="output directory (default identify_out)")
     p.add_argument(

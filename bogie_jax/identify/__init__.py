@@ -23,7 +23,11 @@ from ._chunked import (
     ChunkProgress as ChunkProgress,
     fit_multistart_chunked as fit_multistart_chunked,
 )
-from ._iteration import queue_lanes as queue_lanes, supports_queue as supports_queue
+from ._iteration import (
+    default_chunk as default_chunk,
+    queue_lanes as queue_lanes,
+    supports_queue as supports_queue,
+)
 from ._jacobian import JacobianResiduals as JacobianResiduals
 from ._levenberg_marquardt import (
     LevenbergMarquardt as LevenbergMarquardt,

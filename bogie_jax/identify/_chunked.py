@@ -20,6 +20,7 @@ import numpy as np
 
 from ..batch import BatchResult
 from ._batched import batched_fits
+from ._iteration import default_chunk
 from ._local import LocalOutput
 from ._multistart import MultistartResult, collect, design_starts
 from ._problem import as_problem, results_from_names, status_names
@@ -196,8 +197,9 @@ def fit_multistart_chunked(
     **Arguments:**
     - `problem`, `key`, `n_starts`, `method`, `design`, `max_steps`, `lanes`, `cluster_tol`,
       `bound_tol`: as in `fit_multistart` (solves never raise; failed starts are reported).
-    - `chunk`: starts per compiled batch (default 2 per device); the last chunk is padded with
-      copies of its last start, whose results are dropped.
+    - `chunk`: starts per compiled batch (default `default_chunk`: 2 per CPU device, every lane
+      of an accelerator); the last chunk is padded with copies of its last start, whose results
+      are dropped.
     - `record`: a JSON-lines file. Starts already recorded there (by an earlier call with the
       same problem, key, design and `n_starts`) are read back, not run; every finished start is
       appended (one line per start, with its design `index`, flushed after each chunk).
@@ -214,7 +216,7 @@ def fit_multistart_chunked(
     batched, problem = problem, as_problem(problem)  # batched_fits takes the objective itself
     thetas = np.asarray(design_starts(problem, key, n_starts, design))
     starts = np.asarray(jax.vmap(problem.transform.to_physical)(thetas))
-    chunk = chunk or 2 * jax.device_count()
+    chunk = chunk or default_chunk(lanes, thetas.shape[1])
     if chunk < 1:
         raise ValueError(f"`chunk` must be >= 1, got {chunk}")
     path = None if record is None else Path(record)

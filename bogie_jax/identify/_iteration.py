@@ -130,6 +130,21 @@ def queue_lanes(lanes, n_params: int, devices=None) -> int | None:
     return int(lanes)
 
 
+def default_chunk(lanes, n_params: int, devices=None) -> int:
+    """Starts per chunk of a chunked multistart when the caller gives none: every device's
+    lanes once (`queue_lanes`; `"auto"` where `lanes` is `None`, the lock-step batch), at least
+    two per device (a CPU device steps one fit at a time, so the chunk only sets how often
+    finished work is saved).
+
+    On an accelerator the chunk is its parallelism: the default identification (3 parameters,
+    8 starts) on one H200 fitted in 27.1 s in chunks of 2 and 12.5 s in one chunk of 8
+    (`benchmarks/results/identify_gpu_h200.md`).
+    """
+    devices = jax.devices() if devices is None else devices
+    per_device = queue_lanes("auto" if lanes is None else lanes, n_params, devices)
+    return len(devices) * max(2, per_device)
+
+
 def supports_queue(method) -> bool:
     """Whether `method` can run as a queued batch: optimistix's Gauss-Newton family with the
     library's `HouseholderQR` steps (the queue runs each device on its own with `shard_map`,
