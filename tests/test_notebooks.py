@@ -11,11 +11,10 @@ from nbclient import NotebookClient
 
 NOTEBOOKS = sorted((Path(__file__).parents[1] / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT = 900  # [s] one cell; a whole notebook should take under 3 minutes (README)
-# By default the suite runs notebooks 01, 02, 04 and 05 in a kernel (85 s, 43 s, 91 s and 93 s
-# alone, cold, 2026-11-26/27, 2-core CPU; 134 s, 56 s, 148 s and 142 s in the full suite, which
-# took 1036 s with 04 and 05 against 905 s without). 03 (142-150 s alone, most of it compiling
-# four programs) runs with `pytest -m heavy` (README, "Tests"): the suite has no room for it
-# within its 20 minutes.
+# By default the suite runs notebooks 01, 02, 04 and 05 in a kernel (53 s, 43 s, 91 s and 93 s
+# alone, cold, 2026-11-26/27, 2-core CPU; 98 s, 64 s, 165 s and 145 s in the full suite of
+# 1006 s). 03 (146 s alone, most of it compiling four programs) runs with `pytest -m heavy`
+# (README, "Tests"): the suite has no room for it within its 20 minutes.
 DEFAULT_KERNEL_RUNS = (
     "01_forward_model_and_hunting.ipynb",
     "02_sensitivity.ipynb",
