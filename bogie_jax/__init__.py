@@ -5,7 +5,8 @@ command line (`bogie_jax.cli.main`) must set `XLA_FLAGS` before JAX is imported.
 """
 
 import importlib
-import importlib.metadata
+
+from . import _version
 
 
 _EXPORTS = {  # what a notebook needs, by module
@@ -49,8 +50,7 @@ _EXPORTS = {  # what a notebook needs, by module
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_WHERE)
-
-__version__ = importlib.metadata.version("bogie-jax")
+__version__ = _version.VERSION
 
 
 def __getattr__(name: str):

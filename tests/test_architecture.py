@@ -18,6 +18,7 @@ PACKAGE = ROOT / "bogie_jax"
 #   -> gradients / identify / sensitivity -> monitor -> io / plot / cli  (README, issue "One house")
 LAYERS = {
     "_precision": 0,
+    "_version": 0,
     "_validation": 0,
     "_householder": 0,  # a least-squares / square linear solver in plain XLA operations
     "params": 0,
@@ -184,3 +185,20 @@ def test_top_level_re_exports_resolve_and_import_no_jax():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     names = set(eval(out.stdout))
     assert {"simulate", "fit", "fit_multistart", "make_objective", "judge", "trend"} <= names
+
+
+def test_a_source_checkout_that_is_not_installed_still_imports():
+    """Run from a checkout on `sys.path` without the package's metadata (no `pip install`),
+    `bogie_jax` imports and says its version is unknown instead of raising."""
+    import subprocess
+    import sys
+
+    code = (
+        "import importlib.metadata as md\n"
+        "def missing(name): raise md.PackageNotFoundError(name)\n"
+        "md.version = missing\n"
+        "import bogie_jax\n"
+        "print(bogie_jax.__version__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "unknown (not installed)"

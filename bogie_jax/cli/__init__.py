@@ -10,8 +10,8 @@ a default and `--help` gives units; bad values get a one-line error and exit cod
 import argparse
 import importlib
 import sys
-from importlib.metadata import version
 
+from .._version import VERSION
 from . import _setup
 from ._common import Parser as Parser, Progress as Progress, UsageError as UsageError
 
@@ -70,7 +70,7 @@ def main(argv=None) -> int:
     modules = _command_modules()
     args = build_parser(modules).parse_args(argv)
     progress = Progress()
-    progress.say(_setup.describe(setup, version("bogie-jax")))
+    progress.say(_setup.describe(setup, VERSION))
     try:
         return modules[args.command].run(args, progress)
     except UsageError as e:
