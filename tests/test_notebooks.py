@@ -12,8 +12,8 @@ from nbclient import NotebookClient
 NOTEBOOKS = sorted((Path(__file__).parents[1] / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT = 900  # [s] one cell; a whole notebook should take under 3 minutes (README)
 # By default the suite runs notebooks 01, 02, 04 and 05 in a kernel (53 s, 43 s, 91 s and 93 s
-# alone, cold, 2026-11-26/27, 2-core CPU; 98 s, 64 s, 165 s and 145 s in the full suite of
-# 1006 s). 03 (146 s alone, most of it compiling four programs) runs with `pytest -m heavy`
+# alone, cold, 2026-11-26/27, 2-core CPU; 95 s, 59 s, 161 s and 140 s in the full suite of
+# 991 s). 03 (146 s alone, most of it compiling four programs) runs with `pytest -m heavy`
 # (README, "Tests"): the suite has no room for it within its 20 minutes.
 DEFAULT_KERNEL_RUNS = (
     "01_forward_model_and_hunting.ipynb",
