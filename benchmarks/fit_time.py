@@ -32,7 +32,11 @@ import numpy as np  # noqa: E402
 
 from benchmarks._common import median_time, write_outputs  # noqa: E402
 from bogie_jax.cost import residual_jacobian  # noqa: E402
-from bogie_jax.identify import fit_multistart_chunked, scenario_problem  # noqa: E402
+from bogie_jax.identify import (  # noqa: E402
+    default_chunk,
+    fit_multistart_chunked,
+    scenario_problem,
+)
 
 
 N_STARTS = 8
@@ -41,14 +45,19 @@ N_STARTS = 8
 def main() -> None:
     problem = scenario_problem("default", key=jr.PRNGKey(1), rtol=1e-6)
     objective = problem.objective
-    chunk = 2 * jax.device_count()
+    chunk = default_chunk("auto", objective.selection.n_params)  # identify's default
     chunk_times = []
 
     def on_chunk(progress):
         chunk_times.append(progress.run_time)
 
     run = fit_multistart_chunked(
-        objective, key=jr.PRNGKey(0), n_starts=N_STARTS, max_steps=100, on_chunk=on_chunk
+        objective,
+        key=jr.PRNGKey(0),
+        n_starts=N_STARTS,
+        chunk=chunk,
+        max_steps=100,
+        on_chunk=on_chunk,
     )
     records = run.result.records()
     steps = np.array([r["num_steps"] for r in records])

@@ -309,6 +309,7 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
     599999.20 N s/m (2.0e-6, not flagged)."""
     lower = np.asarray(clean.objective.selection.lower)
     upper = np.asarray(clean.objective.selection.upper)
+    near = lambda x: np.minimum(x - lower, upper - x) / (upper - lower) < NEAR_BOUND
     compared = 0
     for k, (start, end, cost) in enumerate(
         zip(multistart4.starts, multistart4.ends, multistart4.costs)
@@ -319,7 +320,6 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
         # minimum on a bound the cost is not stationary, so it moves with the estimate: 1e-5)
         np.testing.assert_allclose(float(single.cost), cost, rtol=1e-5, atol=1e-6)
         # both ends at the same bounds, within `NEAR_BOUND` of the box width (see above)
-        near = lambda x: np.minimum(x - lower, upper - x) / (upper - lower) < NEAR_BOUND
         single_end = np.asarray(single.estimates)
         np.testing.assert_array_equal(near(end), near(single_end))
         if not near(end).any():
