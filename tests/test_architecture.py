@@ -7,6 +7,8 @@ import that dodges a cycle at run time is still an edge here.
 
 import ast
 import pathlib
+import subprocess
+import sys
 
 import pytest
 
@@ -172,9 +174,6 @@ def test_top_level_re_exports_resolve_and_import_no_jax():
     """`bogie_jax` offers what a notebook needs, and importing it loads no JAX (the command
     line sets up devices first). An exported function is never shadowed by a submodule of the
     same name (importing `bogie_jax.x` sets the package attribute `x` to the module)."""
-    import subprocess
-    import sys
-
     code = (
         "import sys, bogie_jax as bj; assert 'jax' not in sys.modules; "
         "[getattr(bj, n) for n in bj.__all__]; import bogie_jax.cost; "
@@ -190,9 +189,6 @@ def test_top_level_re_exports_resolve_and_import_no_jax():
 def test_a_source_checkout_that_is_not_installed_still_imports():
     """Run from a checkout on `sys.path` without the package's metadata (no `pip install`),
     `bogie_jax` imports and says its version is unknown instead of raising."""
-    import subprocess
-    import sys
-
     code = (
         "import importlib.metadata as md\n"
         "def missing(name): raise md.PackageNotFoundError(name)\n"
