@@ -109,8 +109,9 @@ def summary(records: list[dict]) -> dict:
     return out
 
 
-def markdown(records: list[dict], stats: dict, command: list[str], location: str) -> str:
-    first = next((r["first_line"] for r in records if r["first_line"]), "")
+def markdown(
+    records: list[dict], stats: dict, command: list[str], location: str, first: str
+) -> str:
     lines = [
         "# `bogie-jax identify` wall time, cold and warm (issue 15, item 5)",
         "",
@@ -159,11 +160,12 @@ def main() -> None:
                 print(f"round {k} {mode}: {rec['wall_s']:.1f} s wall, exit {rec['returncode']}")
     stats = summary(records)
     name = "identify_wall" + (f"_{opts.name}" if opts.name else "")
-    env = {**environment(), "command": command, "package": location, "args": passthrough}
-    env["n_devices"] = next((r["first_line"] for r in records if r["first_line"]), "")
-    write_outputs(
-        name, records, markdown(records, stats, command, location), {"summary": stats}, env
-    )
+    first = next((r["first_line"] for r in records if r["first_line"]), "")  # its devices
+    # this process's devices are not the command's: the command's first line says what it ran on
+    env = {k: v for k, v in environment().items() if k not in ("device", "n_devices")}
+    env |= {"command": command, "package": location, "args": passthrough, "first_line": first}
+    md = markdown(records, stats, command, location, first)
+    write_outputs(name, records, md, {"summary": stats}, env)
 
 
 if __name__ == "__main__":
