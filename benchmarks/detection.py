@@ -282,7 +282,18 @@ def run_case(cfg: dict, index: int) -> dict:
         "noise_variance": result.fit.noise_variance,
         "sigma2": result.fit.sigma2,
         "runs_used": result.fit.runs_used,
+        "horizons": list(result.fit.horizons),
+        "misfit_ratio": result.fit.misfit_ratio,
     }
+    record["runs"] = [
+        {
+            "speed_factor": r.speed_factor,
+            "speed_factor_true": 1.0 / (1.0 + e) if "speed" in on else 1.0,
+            "position_offset": r.position_offset,
+            "position_offset_true": -o if track_on else 0.0,
+        }
+        for r, e, o in zip(result.runs, case["speed_errors"], case["offsets_m"])
+    ]
     record["monitor_timings"] = dict(result.timings)
     record["wall_s"] = time.perf_counter() - tic
     return _finite(record)

@@ -493,6 +493,9 @@ def test_monitor_rejects_bad_input_before_fitting(nominal):
         monitor([a, b], track_error=3e-4, track_error_draws=1)
     with pytest.raises(ValueError, match="`covariance` = 'robust'"):
         monitor([a, b], covariance="robust")
+    for start in (0.0, -1.0, float("nan"), "1", True):
+        with pytest.raises(ValueError, match="`horizon_start`"):
+            monitor([a, b], horizon_start=start)
 
 
 @pytest.mark.heavy

@@ -21,6 +21,11 @@ from ._elements import (
     ElementStatus as ElementStatus,
     classify_elements as classify_elements,
 )
+from ._horizon import (
+    HORIZON_START as HORIZON_START,
+    horizon_stages as horizon_stages,
+    window_rows as window_rows,
+)
 from ._host_fit import HostFit as HostFit, levenberg_marquardt as levenberg_marquardt
 from ._imperfections import (
     ERROR_SEED_OFFSET as ERROR_SEED_OFFSET,

@@ -19,9 +19,11 @@ Steps (each documented where it is done):
    identifiable;
 5. a Levenberg-Marquardt fit of the identifiable coordinates (the others held at nominal)
    together with every nuisance parameter, with the same program, weighted by the sensors'
-   nominal noise; a run whose simulation fails at the estimate, or that the joint fit does
-   not explain while it explains another (`_checks.failed_runs`), is left out and the fit
-   repeated without it (same program: the run's residuals are masked);
+   nominal noise; a record longer than `horizon_start` (1 s) is fitted over its first second,
+   then over twice that, and so on, each stage from the last estimate (`_horizon.py`); a run
+   whose simulation fails at the estimate, or that the joint fit does not explain while it
+   explains another (`_checks.failed_runs`), is left out and the fit repeated without it
+   (same program: the run's residuals are masked);
 6. per-channel noise (`noise="per-channel"`, the default; `_robust.py`): the residual variance
    of every run and channel is estimated from the fit (degrees of freedom corrected), the rows
    reweighted by 1 / sqrt of it (floored at 1e-4 of the assumed variance) and the fit repeated
@@ -77,6 +79,7 @@ from ._elements import (
     classify_elements,
     nominal_values,
 )
+from ._horizon import HORIZON_START, check_horizon_start, horizon_stages, window_rows
 from ._host_fit import levenberg_marquardt
 from ._nuisance import DEFAULT_NUISANCE, NuisanceLayout, check_nuisance
 from ._profile import profile_point
@@ -92,6 +95,7 @@ COVARIANCES = ("sandwich", "gauss-newton")
 REWEIGHTS = 3  # at most this many refits with per-channel weights
 SETTLED = 0.1  # the weights have settled when none changes by more than this fraction
 SIMEX_MAX_SPREAD = 0.1  # [-] in ln p: the records' bias is removed where their spread is less
+STAGE_OFFSET_TOL = 0.3  # the horizon stages' relative-offset stop (`_host_fit.py`, `_horizon`)
 _JACOBIAN = eqx.filter_jit(residual_jacobian)
 
 
@@ -112,6 +116,7 @@ def monitor(
     resolution: float = RESOLUTION,
     max_correlation: float = MAX_CORRELATION,
     max_steps: int = 30,
+    horizon_start: float | None = HORIZON_START,
     run_misfit: float = RUN_MISFIT,
     track_error: float = 0.0,
     track_error_draws: int = 16,
@@ -160,7 +165,11 @@ def monitor(
       Andrews' AR(1) plug-in rule (`bogie_jax.cost.hac_bandwidth`) on the prewhitened
       scores (`bogie_jax.cost.long_run_covariance`).
     - `resolution`, `max_correlation`: the identifiability rule (`_elements.py`).
-    - `max_steps`: Levenberg-Marquardt steps per fit; `run_misfit`: the rule that leaves a run
+    - `max_steps`: Levenberg-Marquardt steps per fit; `horizon_start` [s]: a record longer
+      than this is fitted first on its first `horizon_start` seconds, then on twice that, and
+      so on, each stage from the last one's estimate (`_horizon.py`: a long record's speed
+      factor otherwise falls into a wrong minimum), `None`: one fit of the whole record;
+      `run_misfit`: the rule that leaves a run
       out after the first fit (`_checks.failed_runs`: a run whose simulation fails, or whose
       residuals stay above sqrt(run_misfit) times the sensors' nominal noise while another run
       is fitted `run_misfit` times better); the verdicts then say they used fewer runs;
@@ -179,7 +188,8 @@ def monitor(
     layouts, a track count that differs from the measurement count, unknown or repeated
     candidates, a band of zero width, a false-alarm rate outside (0, 0.5), an unknown `noise`
     or `covariance`, a `bandwidth` below 1, a `track_error` that is not finite and >= 0 or
-    fewer than 2 `track_error_draws`. `RuntimeError` if the simulation fails for every
+    fewer than 2 `track_error_draws`, a `horizon_start` that is not `None` or > 0.
+    `RuntimeError` if the simulation fails for every
     run.
     """
     tic = time.perf_counter()
@@ -198,6 +208,7 @@ def monitor(
         raise ValueError(f"`track_error` = {track_error!r} m must be finite and >= 0")
     if not (isinstance(track_error_draws, int) and track_error_draws >= 2):
         raise ValueError(f"`track_error_draws` = {track_error_draws!r} must be an integer >= 2")
+    check_horizon_start(horizon_start)
     if not 0 < resolution <= 1 or not 0 < max_correlation <= 1:
         raise ValueError(
             f"`resolution` = {resolution!r} and `max_correlation` = {max_correlation!r} must lie "
@@ -271,8 +282,9 @@ def monitor(
     # 3. the bias projection (and, step 6, the channel weights) on the host
     n_channels = len(measurements[0].channels)
     mask = np.concatenate([np.isfinite(np.asarray(m.data)).reshape(-1) for m in measurements])
-    layout = lambda: RunChannels.of(slices, n_channels, mask, active.copy())
-    project = layout().centre if remove_bias else (lambda x: x)
+    window = np.ones(mask.shape, dtype=bool)  # the rows fitted (step 5's horizon stages)
+    layout = lambda: RunChannels.of(slices, n_channels, mask & window, active.copy())
+    project = (lambda x: layout().centre(x)) if remove_bias else (lambda x: x)
     n_bias = layout().n_bias if remove_bias else 0
 
     # 4. identifiability (the nuisance columns profiled out: `_nuisance.py`)
@@ -301,16 +313,37 @@ def monitor(
                 last.update(key=key, r=r, jac=np.zeros((r.size, b.shape[1])))
             else:
                 r, jac = evaluate(x)
-                last.update(key=key, r=project(r), jac=project(jac @ b))
+                with np.errstate(invalid="ignore"):  # rows beyond the horizon may be inf
+                    r, jac = np.where(window, r, 0.0), np.where(window[:, None], jac @ b, 0.0)
+                last.update(key=key, r=project(r), jac=project(jac))
         return last["r"] * rows, last["jac"] * rows[:, None]
 
-    start = lambda: np.zeros(len(coords) + nuis().n_extra())
+    times = [np.asarray(m.times) for m in measurements]
+    stages = horizon_stages([t[-1] - t[0] for t in times], horizon_start)
+
+    def fit_from_start():
+        """The fit from the nominal bogie (and stated speeds and positions), continued over
+        the horizon stages (`_horizon.py`); every stage's fit is appended to `fits`."""
+        phi = np.zeros(len(coords) + nuis().n_extra())
+        for horizon in stages:
+            window[:] = window_rows(times, slices, n_channels, horizon)
+            last.clear()
+            say(f"fitting the first {horizon:g} s of every run")
+            stage = levenberg_marquardt(
+                evaluate_phi, phi, max_steps=max_steps, offset_tol=STAGE_OFFSET_TOL
+            )
+            fits.append(stage)
+            if stage.status != "failed":
+                phi = stage.phi
+        window[:] = True
+        last.clear()
+        fits.append(levenberg_marquardt(evaluate_phi, phi, max_steps=max_steps))
+        return fits[-1]
 
     t0 = time.perf_counter()
     fit, fits = None, []
     if coords:
-        fit = levenberg_marquardt(evaluate_phi, start(), max_steps=max_steps)
-        fits.append(fit)
+        fit = fit_from_start()
         while True:
             bad, why = failed_runs(fit.r, slices, active, n_obs_runs, run_misfit)
             if not bad:
@@ -321,8 +354,7 @@ def monitor(
             objective = with_active(objective)
             last.clear()
             n_bias = layout().n_bias if remove_bias else 0
-            fit = levenberg_marquardt(evaluate_phi, start(), max_steps=max_steps)
-            fits.append(fit)
+            fit = fit_from_start()
 
     # 6. per-channel noise: reweight and refit from the estimate
     w = np.ones((n_runs, n_channels))
@@ -398,7 +430,17 @@ def monitor(
     )  # fmt: skip
     timings["verdicts_s"] = time.perf_counter() - t0
     draws_used = 0 if track_effect is None else track_effect.draws
-    summary = dataclasses.replace(summary, track_error=track_error, track_error_draws=draws_used)
+    misfit_ratio = float("nan")
+    if track_effect is not None and draws_used:
+        # the residual SS the records' error leaves (`_track_error.py`) plus the sensors'
+        # stated noise in the fit's weights, less the fitted and bias parameters' share
+        m_used = used.n_present
+        noise_ss = float(np.sum(used.counts() * w**2)) * (m_used - fit.phi.size - n_bias) / m_used
+        misfit_ratio = 2.0 * fit.cost / (track_effect.misfit_ss + noise_ss)
+    summary = dataclasses.replace(
+        summary, track_error=track_error, track_error_draws=draws_used,
+        horizons=stages if coords else (), misfit_ratio=misfit_ratio,
+    )  # fmt: skip
     offsets, factors = layout_x.offsets(x_hat), np.exp(layout_x.log_speed_factors(x_hat))
     fitted = fit is not None and fit.status != "failed" and run_corrections
     se_runs = np.full((2, n_runs), np.nan)

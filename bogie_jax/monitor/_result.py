@@ -62,7 +62,11 @@ class FitSummary:
     values are in `MonitorResult.runs`); `nuisance`: the parameters fitted but not judged,
     `{name: {"estimate", "std_error", "nominal", "unit"}}`; `track_error` [m]: the track
     records' error RMS in the covariance and `track_error_draws` its realisations used (0:
-    records taken as exact)."""
+    records taken as exact); `horizons` [s]: the spans fitted before the whole record
+    (`monitor`'s `horizon_start`; `()`: one fit of the whole record); `misfit_ratio`: with a
+    `track_error`, 2 `cost` over the residual sum of squares that the records' error and the
+    sensors' stated noise should leave at the right minimum (`_track_error.py`; about 1 when
+    the fit explains the data as well as those errors allow; NaN without a `track_error`)."""
 
     names: tuple[str, ...]
     status: str
@@ -85,6 +89,8 @@ class FitSummary:
     nuisance: dict = dataclasses.field(default_factory=dict)
     track_error: float = 0.0
     track_error_draws: int = 0
+    horizons: tuple[float, ...] = ()
+    misfit_ratio: float = float("nan")
 
 
 @dataclasses.dataclass(frozen=True)

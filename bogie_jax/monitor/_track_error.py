@@ -35,6 +35,13 @@ linear in the error variance: 2 sigma^2 - sigma^2 = sigma^2), subtracted from th
 The mean of `draws` shifts adds `1 / draws` of the term's variance to a corrected estimate's.
 `monitor` removes it only from well-determined element coordinates (`_monitor._corrected`:
 one Gauss-Newton step misjudges the bias of weakly identified ones).
+
+Misfit (a goodness-of-fit yardstick): the part of a draw's residual change outside the span of
+J, `(I - J J^+)(r(record + e) - r(record))`, is what a record's error leaves in the residuals
+after the fit has absorbed what it can; the mean of its squared norm over the draws is the
+residual sum of squares the records' error should leave at a fit in the right minimum (to first
+order). `monitor` reports the fit's residual sum of squares over it plus the sensors' noise
+(`FitSummary.misfit_ratio`).
 """
 
 from typing import NamedTuple
@@ -67,6 +74,7 @@ class TrackErrorEffect(NamedTuple):
     covariance: np.ndarray  # (n, n): of the estimates' shift by the records' error
     bias: np.ndarray  # (n,): the estimates' bias from it (SIMEX), to subtract
     draws: int  # realisations used (a failed solve's left out)
+    misfit_ss: float = float("nan")  # mean |(I - J J^+) dr|^2: the residual SS it leaves
 
 
 def track_error_effect(evaluate_with, tracks, *, rms, semi_distance, draws, seed=0):
@@ -82,7 +90,7 @@ def track_error_effect(evaluate_with, tracks, *, rms, semi_distance, draws, seed
     r0, j0 = (np.asarray(a, dtype=float) for a in evaluate_with(list(tracks)))
     pinv = np.linalg.pinv(j0)
     step0 = pinv @ r0  # ~0 at a converged fit; subtracted so that no error gives no shift
-    first, refit = [], []
+    first, refit, misfit = [], [], []
     for _ in range(draws):
         perturbed = [
             TrackIrregularity(
@@ -92,10 +100,14 @@ def track_error_effect(evaluate_with, tracks, *, rms, semi_distance, draws, seed
         ]
         r, jac = (np.asarray(a, dtype=float) for a in evaluate_with(perturbed))
         if np.all(np.isfinite(r)) and np.all(np.isfinite(jac)):
-            first.append(-pinv @ (r - r0))
+            change = r - r0
+            first.append(-pinv @ change)
+            misfit.append(float(np.sum((change - j0 @ (pinv @ change)) ** 2)))
             refit.append(-(np.linalg.pinv(jac) @ r) + step0)
     n = j0.shape[1]
     if not first:
         return TrackErrorEffect(np.full((n, n), np.nan), np.full(n, np.nan), 0)
     s = np.array(first)
-    return TrackErrorEffect(s.T @ s / len(first), np.mean(refit, axis=0), len(first))
+    return TrackErrorEffect(
+        s.T @ s / len(first), np.mean(refit, axis=0), len(first), float(np.mean(misfit))
+    )
