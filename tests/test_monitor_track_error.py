@@ -48,7 +48,8 @@ def test_covariance_of_the_shift_matches_its_closed_form():
     covariance of the phase-randomised error: circulant per channel with autocovariance
     c(tau) = (1 / n^2) sum_k |X_k|^2 cos(2 pi k tau / n) of the record's spectrum X, scaled to
     the channel's RMS (odd n: no Nyquist term). 2000 draws: the relative error of a variance
-    estimate is about sqrt(2 / 2000) = 3 %; held to 4 times that."""
+    estimate is about sqrt(2 / 2000) = 3 %; held to 4 times that. The same draws' mean squared
+    residual outside the span of A (`misfit_ss`) against its closed form."""
     rng = np.random.default_rng(1)
     n_s, m, n = 61, 150, 3
     values = _record(rng, n_s)
@@ -80,6 +81,12 @@ def test_covariance_of_the_shift_matches_its_closed_form():
     expected = pinv @ g @ cov_e @ g.T @ pinv.T
     np.testing.assert_allclose(np.diag(got), np.diag(expected), rtol=0.12)
     assert np.all(np.diag(expected) > 0)
+    # the residual the error leaves outside the span of A (the goodness-of-fit yardstick):
+    # E|(I - P_A) G e|^2 = trace((I - P_A) G S G^T), P_A = A A^+; the relative error of the mean
+    # of 2000 squared norms of a Gaussian vector is at most sqrt(2 / 2000) = 3 %
+    outside = np.eye(m) - a @ pinv
+    expected_ss = np.trace(outside @ g @ cov_e @ g.T @ outside.T)
+    assert effect.misfit_ss == pytest.approx(expected_ss, rel=0.12)
     # the Jacobian does not depend on the record: no errors-in-variables bias (the mean of
     # 2000 zero-mean shifts: within 4 of its standard errors, sqrt(var / 2000))
     assert np.all(np.abs(effect.bias) < 4 * np.sqrt(np.diag(expected) / draws))
@@ -153,3 +160,31 @@ def test_model_error_adds_to_the_covariance():
     assert np.isinf(se[0]) and np.isinf(se[2])
     assert se[1] == pytest.approx(np.sqrt(float(base.covariance[1, 1]) + 0.5), rel=1e-12)
     assert int(out.rank) == int(base.rank) == 2
+
+
+@pytest.mark.parametrize("ratio, explains", [(0.96, True), (3.0, True), (27.0, False)])
+def test_a_fit_that_misses_the_data_is_flagged_in_table_json_and_report(ratio, explains, tmp_path):
+    """`FitSummary.misfit_ratio` above `MISFIT_LIMIT` marks the verdicts as unreliable in the
+    tables (`MonitorResult.table`, the commands'), `verdicts.json` and the report (constructed
+    result: nothing is simulated); without a track error (NaN) nothing is flagged."""
+    from bogie_jax.cli._monitor_output import verdict_table
+    from bogie_jax.io import verdicts_record, write_report
+    from bogie_jax.monitor import MISFIT_LIMIT, FitSummary, MonitorResult, ToleranceBand, judge
+
+    assert MISFIT_LIMIT == 3.0
+    band = ToleranceBand((3.2e5, 4.8e5), unit="N s/m", failed_below=1e5)
+    verdict = judge("yaw_dampers.left.c", 2.9e5, 1e4, band, z=2.96, identifiable=True)
+    for value, flagged in ((ratio, not explains), (float("nan"), False)):
+        fit = FitSummary(
+            names=("yaw_dampers.left.c",), status="converged", steps=3, evaluations=4,
+            cost=1.0, noise_variance=1.0, sigma2=1.0, rank=1, condition_number=1.0,
+            runs_used=1, misfit_ratio=value,
+        )  # fmt: skip
+        result = MonitorResult((verdict,), (), fit, (), 0.05, {})
+        assert fit.explains_data is not flagged
+        assert ("WARNING: the fit leaves" in result.table()) is flagged
+        assert ("WARNING: the fit leaves" in verdict_table(result)) is flagged  # the commands'
+        record = verdicts_record(result, date="2026-11-27")
+        assert record["fit"]["explains_data"] is not flagged
+        text = write_report(tmp_path / "report.md", record).read_text()
+        assert ("WARNING: the fit leaves" in text) is flagged

@@ -8,6 +8,7 @@ import numpy as np
 from ..cost import window_lead_in
 from ..io import verdicts_record, write_report, write_verdicts
 from ..measure import sensors_from_layout, synthetic_measurement
+from ..monitor import misfit_warning
 from ..params import get_parameter, set_parameters
 from ._common import text_table
 
@@ -73,7 +74,8 @@ def verdict_table(result) -> str:
                 v.band.unit,
             )
         )
-    return text_table(rows)
+    warning = misfit_warning(result.fit.misfit_ratio)
+    return text_table(rows) + (f"\n{warning}" if warning else "")
 
 
 def _signal_channels(measurements, n: int) -> list[int]:

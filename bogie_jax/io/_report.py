@@ -25,6 +25,8 @@ import math
 import os
 from pathlib import Path
 
+from ..monitor import misfit_warning
+
 
 VERDICTS_FORMAT = "bogie_jax.verdicts/1"
 VERDICTS_FILE = "verdicts.json"
@@ -253,7 +255,11 @@ def write_report(
         else "Alarm: " + "; ".join(f"`{r['name']}` {r['verdict']}" for r in alarms) + "."
     )
     lines = [f"# {title}", "", f"Date {record['date']}. {record.get('source', '')}", ""]
-    lines += [f"**{summary}**", "", *_verdict_table(rows), ""]
+    lines += [f"**{summary}**", ""]
+    warning = misfit_warning((record.get("fit") or {}).get("misfit_ratio"))
+    if warning:
+        lines += [f"**{warning}.**", ""]
+    lines += [*_verdict_table(rows), ""]
     for caption, file in figures:
         lines += [f"![{caption}]({file})", "", f"*{caption}*", ""]
     lines += ["## Runs", "", *_runs_table(record.get("runs", [])), ""]

@@ -52,9 +52,11 @@ from ._nuisance import (
 )
 from ._profile import ProfilePoint as ProfilePoint, profile_point as profile_point
 from ._result import (
+    MISFIT_LIMIT as MISFIT_LIMIT,
     FitSummary as FitSummary,
     MonitorResult as MonitorResult,
     RunStatus as RunStatus,
+    misfit_warning as misfit_warning,
 )
 from ._robust import (
     S2_FLOOR as S2_FLOOR,

@@ -46,6 +46,21 @@ class RunStatus:
     corrected: bool = False
 
 
+MISFIT_LIMIT = 3.0  # [-]: a larger `FitSummary.misfit_ratio` marks a fit that misses the data
+
+
+def misfit_warning(misfit_ratio) -> str:
+    """The warning for a fit whose `misfit_ratio` (`FitSummary`) exceeds `MISFIT_LIMIT`; `""`
+    otherwise (NaN or `None`: nothing to compare with)."""
+    if misfit_ratio is None or not float(misfit_ratio) > MISFIT_LIMIT:
+        return ""
+    return (
+        f"WARNING: the fit leaves {float(misfit_ratio):.3g} times the residual that the track "
+        f"records' error and the sensors' noise explain (limit {MISFIT_LIMIT:g}): it may have "
+        "stopped in a wrong minimum, and these verdicts are not reliable"
+    )
+
+
 @dataclasses.dataclass(frozen=True)
 class FitSummary:
     """The joint fit: fitted coordinate `names`, LM `status` (`converged`, `max_steps`,
@@ -91,6 +106,14 @@ class FitSummary:
     track_error_draws: int = 0
     horizons: tuple[float, ...] = ()
     misfit_ratio: float = float("nan")
+
+    @property
+    def explains_data(self) -> bool:
+        """False where `misfit_ratio` exceeds `MISFIT_LIMIT`: the fit leaves several times the
+        residual that the track records' error and the sensors' noise explain, the sign of a
+        wrong local minimum, and its verdicts are no verdicts (True without a `track_error`,
+        where nothing is known to compare with)."""
+        return not misfit_warning(self.misfit_ratio)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,6 +177,8 @@ class MonitorResult:
                     f"{r.position_offset_se:.2g} m, speed x {r.speed_factor:.5f} +- "
                     f"{r.speed_factor_se:.1e}"
                 )
+        if not self.fit.explains_data:
+            rows.append(misfit_warning(self.fit.misfit_ratio))
         left = [r for r in self.runs if not r.used]
         if left:
             rows.append(
@@ -165,7 +190,7 @@ class MonitorResult:
     def to_dict(self) -> dict:
         """JSON-ready: `verdicts` (name, verdict, estimate, std_error, ci95, tolerance_band,
         unit, evidence; `None` for values the data do not determine), `elements`, `fit`,
-        `runs`, `false_alarm_rate`, `timings`."""
+        `runs`, `false_alarm_rate`, `timings`; `fit` holds `explains_data` too."""
         verdicts = []
         for v in self.verdicts:
             d = v.to_dict()
@@ -176,7 +201,7 @@ class MonitorResult:
             {
                 "verdicts": verdicts,
                 "elements": [s.to_dict() for s in self.elements],
-                "fit": dataclasses.asdict(self.fit),
+                "fit": {**dataclasses.asdict(self.fit), "explains_data": self.fit.explains_data},
                 "runs": [dataclasses.asdict(r) for r in self.runs],
                 "false_alarm_rate": self.false_alarm_rate,
                 "timings": self.timings,
