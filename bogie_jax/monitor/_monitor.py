@@ -169,10 +169,10 @@ def monitor(
       than this is fitted first on its first `horizon_start` seconds, then on twice that, and
       so on, each stage from the last one's estimate (`_horizon.py`: a long record's speed
       factor otherwise falls into a wrong minimum), `None`: one fit of the whole record;
-      `run_misfit`: the rule that leaves a run
-      out after the first fit (`_checks.failed_runs`: a run whose simulation fails, or whose
-      residuals stay above sqrt(run_misfit) times the sensors' nominal noise while another run
-      is fitted `run_misfit` times better); the verdicts then say they used fewer runs;
+      `run_misfit`: the rule that leaves a run out after the first fit
+      (`_checks.failed_runs`: a run whose simulation fails, or whose residuals stay above
+      sqrt(run_misfit) times the sensors' nominal noise while another run is fitted
+      `run_misfit` times better); the verdicts then say they used fewer runs;
     - `track_error`: RMS [m] of the track records' error in alignment and vertical level
       (cross level: over the contact distance), propagated into the estimates' covariance by
       `track_error_draws` (>= 2) realisations shaped like the records, which also give the
@@ -189,8 +189,7 @@ def monitor(
     candidates, a band of zero width, a false-alarm rate outside (0, 0.5), an unknown `noise`
     or `covariance`, a `bandwidth` below 1, a `track_error` that is not finite and >= 0 or
     fewer than 2 `track_error_draws`, a `horizon_start` that is not `None` or > 0.
-    `RuntimeError` if the simulation fails for every
-    run.
+    `RuntimeError` if the simulation fails for every run.
     """
     tic = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
@@ -323,7 +322,9 @@ def monitor(
 
     def fit_from_start():
         """The fit from the nominal bogie (and stated speeds and positions), continued over
-        the horizon stages (`_horizon.py`); every stage's fit is appended to `fits`."""
+        the horizon stages (`_horizon.py`); every stage's fit is appended to `fits`. Where the
+        stages end at a point whose whole-record simulation fails, the whole record is fitted
+        from the start instead."""
         phi = np.zeros(len(coords) + nuis().n_extra())
         for horizon in stages:
             window[:] = window_rows(times, slices, n_channels, horizon)
@@ -338,6 +339,9 @@ def monitor(
         window[:] = True
         last.clear()
         fits.append(levenberg_marquardt(evaluate_phi, phi, max_steps=max_steps))
+        if fits[-1].status == "failed" and stages:
+            say("the stages' estimate fails on the whole record: fitting it from the start")
+            fits.append(levenberg_marquardt(evaluate_phi, 0.0 * phi, max_steps=max_steps))
         return fits[-1]
 
     t0 = time.perf_counter()

@@ -41,7 +41,9 @@ J, `(I - J J^+)(r(record + e) - r(record))`, is what a record's error leaves in 
 after the fit has absorbed what it can; the mean of its squared norm over the draws is the
 residual sum of squares the records' error should leave at a fit in the right minimum (to first
 order). `monitor` reports the fit's residual sum of squares over it plus the sensors' noise
-(`FitSummary.misfit_ratio`).
+(`FitSummary.misfit_ratio`): 0.74-1.19 over 19 detection cases with 8 s runs, 9.6 and 55.8 at
+two wrong minima. One realisation of a short record's error varies more: 0.17 on the demo's
+0.5 s runs.
 """
 
 from typing import NamedTuple
