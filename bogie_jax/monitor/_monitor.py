@@ -341,7 +341,7 @@ def monitor(
         fits.append(levenberg_marquardt(evaluate_phi, phi, max_steps=max_steps))
         if fits[-1].status == "failed" and stages:
             say("the stages' estimate fails on the whole record: fitting it from the start")
-            fits.append(levenberg_marquardt(evaluate_phi, 0.0 * phi, max_steps=max_steps))
+            fits.append(levenberg_marquardt(evaluate_phi, np.zeros_like(phi), max_steps=max_steps))
         return fits[-1]
 
     t0 = time.perf_counter()

@@ -180,8 +180,9 @@ class MonitorResult:
                     f"{r.position_offset_se:.2g} m, speed x {r.speed_factor:.5f} +- "
                     f"{r.speed_factor_se:.1e}"
                 )
-        if not self.fit.explains_data:
-            rows.append(misfit_warning(self.fit.misfit_ratio))
+        warning = misfit_warning(self.fit.misfit_ratio)
+        if warning:
+            rows.append(warning)
         left = [r for r in self.runs if not r.used]
         if left:
             rows.append(
