@@ -275,6 +275,7 @@ def run_case(cfg: dict, index: int) -> dict:
             "std_error_track_record": v.evidence.get("std_error_track_record"),
             "std_error_residuals": v.evidence.get("std_error_residuals"),
             "estimate_fitted": v.evidence.get("estimate_fitted"),
+            "track_record_bias": v.evidence.get("track_record_bias"),
         }
         for v in result.verdicts
     ]
