@@ -492,8 +492,9 @@ def _corrected(fit, track_effect, n_log):
     on that trial, and `benchmarks/detection.py` tests it on the other 76 cases). The bias is
     not bounded by the spread: the spread falls with the record's length and the bias does not
     (8 s runs, 30 cases, with the bias removed only within one spread: the secondary lateral
-    dampers' mean error +1.6 standard errors, coverage 63 %). Nuisance coordinates keep their
-    fitted values."""
+    dampers' mean error +1.6 standard errors, coverage 63 %). The step over-estimates the
+    primary springs' bias (1 s runs, 100 cases: about one spread, their errors about 0.35 of
+    it; `benchmarks/README.md`). Nuisance coordinates keep their fitted values."""
     if track_effect is None:
         return fit.phi, np.zeros(fit.phi.size, dtype=bool)
     bias = np.asarray(track_effect.bias, dtype=float)
