@@ -276,6 +276,7 @@ def run_case(cfg: dict, index: int) -> dict:
             "std_error_residuals": v.evidence.get("std_error_residuals"),
             "estimate_fitted": v.evidence.get("estimate_fitted"),
             "track_record_bias": v.evidence.get("track_record_bias"),
+            "watch": v.watch,
         }
         for v in result.verdicts
     ]
@@ -445,8 +446,20 @@ def implied_mae(rec: dict, v: dict) -> tuple[float, float]:
     return MEAN_ABS_PER_STD * v["std_error"] / nom, MEAN_ABS_PER_STD * residual / nom
 
 
+def on_watch(v: dict) -> bool:
+    """The verdict's `watch` flag (95 % interval outside the band, no alarm); for records made
+    before it was stored, the same rule (`bogie_jax.monitor.judge`) from the stored values."""
+    if "watch" in v:
+        return bool(v["watch"])
+    if v["verdict"] in ALARMS or v["identifiable"] == "no" or v["std_error"] is None:
+        return False
+    (lo, hi), (band_lo, band_hi) = v["ci95"], v["healthy_band"]
+    return bool(lo > band_hi or hi < band_lo)  # False for NaN
+
+
 def case_outcome(rec: dict) -> dict:
     alarms = [v for v in rec["verdicts"] if v["verdict"] in ALARMS]
+    watched = [v for v in rec["verdicts"] if on_watch(v)]
     changed = set(rec["changed"])
     right = [v for v in alarms if changed & set(v["members"])]
     wrong = [v for v in alarms if not changed & set(v["members"])]
@@ -455,6 +468,8 @@ def case_outcome(rec: dict) -> dict:
         "alarm": bool(alarms),
         "correct": bool(right),
         "wrong": bool(wrong),
+        "watch_changed": any(changed & set(v["members"]) for v in watched),
+        "watch_other": any(not changed & set(v["members"]) for v in watched),
         "size_error": float(np.mean(size)) if size else None,
     }
 
@@ -481,6 +496,7 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
         n, alarms = len(out), sum(o["alarm"] for o in out)
         correct = sum(o["correct"] for o in out if o["alarm"])
         wrong = sum(o["wrong"] for o in out)
+        watch = (sum(o["watch_changed"] for o in out), sum(o["watch_other"] for o in out))
         sizes = [o["size_error"] for o in out if o["size_error"] is not None]
         cover = [c for r in recs for _, _, _, c in judged(r)]
         mae = f"{100 * np.mean(sizes):.1f}" if sizes else "-"
@@ -489,15 +505,17 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
             "cases": n, "alarms": alarms, "correct_element": correct,
             "wrong_element_alarms": wrong, "size_mae": float(np.mean(sizes)) if sizes else None,
             "covered": int(sum(cover)), "judged": len(cover), "median_wall_s": time_s,
+            "watch_changed": watch[0], "watch_other": watch[1],
         }  # fmt: skip
         if name == "healthy":
             rows.append(
-                f"| healthy | {n} | false alarm {_pct(alarms, n)} | - | {wrong} | - | "
-                f"{_pct(sum(cover), len(cover))} | {time_s:.0f} |"
+                f"| healthy | {n} | false alarm {_pct(alarms, n)} | - | {wrong} | - / {watch[1]} "
+                f"| - | {_pct(sum(cover), len(cover))} | {time_s:.0f} |"
             )
         else:
             rows.append(
-                f"| {name} | {n} | {_pct(alarms, n)} | {_pct(correct, alarms)} | {wrong} | {mae} |"
+                f"| {name} | {n} | {_pct(alarms, n)} | {_pct(correct, alarms)} | {wrong} | "
+                f"{watch[0]} / {watch[1]} | {mae} |"
                 f" {_pct(sum(cover), len(cover))} | {time_s:.0f} |"
             )
     elem_rows = []
@@ -551,13 +569,15 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
         + f"; {len(failed)} cases failed to run.",
         "",
         "| defect | cases | detected | correct element (of detected) | wrong-element alarms | "
-        "size MAE [%] | 95 % coverage | median s |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "on watch: changed / other | size MAE [%] | 95 % coverage | median s |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
         *rows,
         "",
         "Rates with their Wilson 95 % interval in %. Size MAE: mean absolute error of the "
         "estimated relative change of the changed element(s) [percentage points]; coverage: "
-        "share of judged elements (finite standard error) whose 95 % interval holds the truth.",
+        "share of judged elements (finite standard error) whose 95 % interval holds the truth. "
+        "On watch: cases with an element flagged `watch` (its 95 % interval outside the band, no "
+        "alarm: `Verdict.watch`) among the changed elements / among the others.",
         "",
         "| element (identifiable alone) | judged | MAE [%] | implied by the standard errors [%] "
         "| by their residual term [%] | 95 % coverage |",

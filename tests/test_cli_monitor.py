@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bogie_jax.cli import main
-from bogie_jax.io import read_verdicts, write_verdicts
+from bogie_jax.io import read_verdicts, write_report, write_verdicts
 from bogie_jax.monitor import ToleranceBand, decision_z, judge
 from bogie_jax.params import manchester_benchmark
 
@@ -230,3 +230,15 @@ def test_verdicts_reader_rejects_what_it_cannot_use(tmp_path):
     with pytest.raises(ValueError, match="not a JSON file"):
         read_verdicts(tmp_path)
     assert math.isfinite(body["verdicts"][0]["std_error"])
+
+
+def test_report_marks_an_element_on_watch(tmp_path):
+    """95 % interval 481-529 kN s/m above the band's 480, Wald at the edge 2.1 < z = 2.24:
+    healthy, on watch; the report says so in its summary, its table and a note."""
+    body = _record(dict(zip(NAMES, (505e3, 1.22e6))), dict(zip(NAMES, (12e3, 5e3))))
+    record = read_verdicts(write_verdicts(tmp_path, body, date="2026-01-01"))
+    assert [r["evidence"].get("watch") for r in record["verdicts"]] == ["above", None]
+    text = write_report(tmp_path / "report.md", record).read_text()
+    assert "Watch: `yaw_dampers.left.c` (95 % interval above its band)" in text
+    assert "| `yaw_dampers.left.c` | healthy\\* |" in text
+    assert "\\* watch: the 95 % interval lies outside the healthy band" in text

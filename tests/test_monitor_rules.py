@@ -9,6 +9,9 @@ import pytest
 import scipy.stats
 
 from bogie_jax.monitor import (
+    WATCH_NOTE,
+    FitSummary,
+    MonitorResult,
     ToleranceBand,
     decision_z,
     judge,
@@ -16,6 +19,7 @@ from bogie_jax.monitor import (
     t_quantile,
     trend,
     two_sided_p_value,
+    verdict_label,
 )
 
 
@@ -65,6 +69,42 @@ def test_a_halved_damper_is_found_when_its_error_is_small():
         for _ in range(2000)
     ]
     assert all(found)
+
+
+def test_watch_flags_an_interval_outside_the_band_that_raises_no_alarm():
+    """`Verdict.watch`: the 95 % interval wholly outside the band while no test rejects."""
+    z = decision_z(0.05, 10)  # 2.81: Wald at the edge 2.5 rejects nothing below
+    above = judge("d", 505e3, 10e3, BAND, z=z)  # 95 %: 485-525 > 480
+    assert (above.verdict, above.watch) == ("healthy", "above")
+    below = judge("d", 295e3, 10e3, BAND, z=z)  # 95 %: 275-315 < 320
+    assert (below.verdict, below.watch) == ("healthy", "below")
+    wide = judge("d", 560e3, 30e3, BAND, z=z)  # decision interval 168e3 > the band's 160e3
+    assert (wide.verdict, wide.watch) == ("not identifiable", "above")
+    assert judge("d", 495e3, 10e3, BAND, z=z).watch is None  # 95 %: 475-515 reaches the band
+    assert judge("d", 200e3, 10e3, BAND, z=z).watch is None  # degraded: an alarm, no watch
+    assert judge("d", 505e3, 10e3, BAND, z=z, identifiable=False).watch is None
+    assert verdict_label(above.verdict, above.watch) == "healthy*"
+    assert above.to_dict()["evidence"]["watch"] == "above"
+    fit = FitSummary(("d",), "converged", 1, 1, 0.0, 1.0, 1.0, 1, 1.0, 1)
+    result = MonitorResult((above, judge("e", 400e3, 10e3, BAND, z=z)), (), fit, (), 0.05, {})
+    assert result.watches == (above,) and not result.alarms
+    table = result.table()
+    assert "healthy*" in table.splitlines()[1] and table.splitlines()[-1] == WATCH_NOTE
+
+
+def test_watch_rate_of_an_element_on_its_band_edge_is_one_tail():
+    """20 000 estimates of an element on its band's upper edge with their correct standard
+    error: flagged where the 95 % interval clears the edge and the Wald test at z does not
+    reject, P(1.96 < Z < z) = 2.25 % (alarms take the rest of the tail): bounded by one
+    interval's tail, 2.5 %, not by alpha / m."""
+    rng = np.random.default_rng(2)
+    trials, se = 20_000, 15e3
+    z = decision_z(0.05, 10)
+    flags = [judge("e", e, se, BAND, z=z).watch for e in 480e3 + se * rng.standard_normal(trials)]
+    rate = np.mean([f == "above" for f in flags])
+    assert not any(f == "below" for f in flags)
+    expected = scipy.stats.norm.cdf(z) - scipy.stats.norm.cdf(1.959964)
+    assert abs(rate - expected) <= 4 * np.sqrt(expected * (1 - expected) / trials)
 
 
 def test_zero_width_band_and_bad_alpha_are_refused():

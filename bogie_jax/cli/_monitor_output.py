@@ -8,7 +8,7 @@ import numpy as np
 from ..cost import window_lead_in
 from ..io import verdicts_record, write_report, write_verdicts
 from ..measure import sensors_from_layout, synthetic_measurement
-from ..monitor import misfit_warning
+from ..monitor import WATCH_NOTE, misfit_warning, verdict_label
 from ..params import get_parameter, set_parameters
 from ._common import text_table
 
@@ -67,15 +67,17 @@ def verdict_table(result) -> str:
         rows.append(
             (
                 v.name,
-                v.verdict,
+                verdict_label(v.verdict, v.watch),
                 f"{v.estimate:.4g}" if known else "-",
                 f"[{v.ci95[0]:.4g}, {v.ci95[1]:.4g}]" if known else "-",
                 f"[{lo:.4g}, {hi:.4g}]",
                 v.band.unit,
             )
         )
+    notes = [WATCH_NOTE] if result.watches else []
     warning = misfit_warning(result.fit.misfit_ratio)
-    return text_table(rows) + (f"\n{warning}" if warning else "")
+    notes += [warning] if warning else []
+    return "\n".join([text_table(rows), *notes])
 
 
 def _signal_channels(measurements, n: int) -> list[int]:

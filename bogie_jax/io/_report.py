@@ -10,7 +10,8 @@ reports of a monitoring run and of a trend over dated runs.
   `estimate` and `std_error` [unit], `ci95` `[lo, hi]` [unit] (`null` when the data do not
   determine the element), `tolerance_band` (`healthy` `[lo, hi]`, `failed_below`,
   `failed_above`, `unit`), `unit`, `evidence` (decision interval, its z, the tests at the
-  band's limits with their Wald and profile statistics, the reason, runs used);
+  band's limits with their Wald and profile statistics, the reason, `watch`: `above` or
+  `below` where the element is on watch (`bogie_jax.monitor.Verdict.watch`), runs used);
 - `elements` (identifiability of every candidate), `fit`, `runs`, `false_alarm_rate`,
   `timings` [s]: as `bogie_jax.monitor.MonitorResult.to_dict`; further keys a caller adds
   (the demo adds `truth`: the hidden true values).
@@ -25,7 +26,7 @@ import math
 import os
 from pathlib import Path
 
-from ..monitor import misfit_warning
+from ..monitor import WATCH_NOTE, misfit_warning, verdict_label
 
 
 VERDICTS_FORMAT = "bogie_jax.verdicts/1"
@@ -154,13 +155,21 @@ def _verdict_table(rows) -> list[str]:
     for r in rows:
         band = r["tolerance_band"]
         ci = "-" if r["ci95"] is None else f"[{_g(r['ci95'][0])}, {_g(r['ci95'][1])}]"
-        verdict = r["verdict"] if r["verdict"] == "healthy" else f"**{r['verdict']}**"
+        label = verdict_label(r["verdict"], (r.get("evidence") or {}).get("watch"))
+        label = label.replace("*", "\\*")  # markdown: a literal asterisk
+        verdict = label if r["verdict"] == "healthy" else f"**{label}**"
         lines.append(
             f"| `{r['name']}` | {verdict} | {_g(r['estimate'])} | {ci} | "
             f"[{_g(band['healthy'][0])}, {_g(band['healthy'][1])}] | "
             f"{_g(band.get('failed_below'))} | {r['unit']} |"
         )
+    if _watched(rows):
+        lines += ["", WATCH_NOTE.replace("*", "\\*", 1) + "."]
     return lines
+
+
+def _watched(rows) -> list[dict]:
+    return [r for r in rows if (r.get("evidence") or {}).get("watch")]
 
 
 def _runs_table(runs) -> list[str]:
@@ -193,7 +202,8 @@ def _rules(record) -> list[str]:
         "failure limit, `degraded` outside the healthy band; `not identifiable`: the sensors do "
         "not determine the element (Fisher information of these runs) or, no test rejecting, "
         "the decision interval estimate +- z standard errors is wider than the band; else "
-        "`healthy`.",
+        "`healthy`. On watch (\\*): no alarm, but the 95 % interval lies outside the band; "
+        "not held to the false-alarm rate.",
         "- Identifiable elements are chosen from the Fisher information of these runs at the "
         "nominal bogie; elements the sensors cannot separate are judged as their group and held "
         "at nominal otherwise.",
@@ -254,6 +264,16 @@ def write_report(
         if not alarms
         else "Alarm: " + "; ".join(f"`{r['name']}` {r['verdict']}" for r in alarms) + "."
     )
+    watched = _watched(rows)
+    if watched:
+        summary += (
+            " Watch: "
+            + "; ".join(
+                f"`{r['name']}` (95 % interval {r['evidence']['watch']} its band)" for r in watched
+            )
+            + "."
+        )
+
     lines = [f"# {title}", "", f"Date {record['date']}. {record.get('source', '')}", ""]
     lines += [f"**{summary}**", ""]
     warning = misfit_warning((record.get("fit") or {}).get("misfit_ratio"))

@@ -78,10 +78,12 @@ from ._track_error import (
 from ._trend import Trend as Trend, trend as trend
 from ._verdict import (
     VERDICTS as VERDICTS,
+    WATCH_NOTE as WATCH_NOTE,
     ToleranceBand as ToleranceBand,
     Verdict as Verdict,
     decision_z as decision_z,
     judge as judge,
+    verdict_label as verdict_label,
 )
 
 

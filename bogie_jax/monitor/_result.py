@@ -5,7 +5,7 @@ import dataclasses
 import math
 
 from ._elements import ElementStatus
-from ._verdict import Verdict
+from ._verdict import WATCH_NOTE, Verdict, verdict_label
 
 
 def _clean(x):
@@ -156,6 +156,11 @@ class MonitorResult:
         return tuple(v for v in self.verdicts if v.verdict in ("degraded", "failed"))
 
     @property
+    def watches(self) -> tuple[Verdict, ...]:
+        """The verdicts on watch (`Verdict.watch`): 95 % interval outside the band, no alarm."""
+        return tuple(v for v in self.verdicts if v.watch)
+
+    @property
     def runs_used(self) -> int:
         return sum(r.used for r in self.runs)
 
@@ -167,7 +172,10 @@ class MonitorResult:
                 est, ci = "-", "-"
             else:
                 est, ci = f"{v.estimate:12.5g}", f"[{v.ci95[0]:.5g}, {v.ci95[1]:.5g}]"
-            rows.append(f"{v.name:28s} {v.verdict:17s} {est:>12s} {ci:>27s} {v.band.unit}")
+            label = verdict_label(v.verdict, v.watch)
+            rows.append(f"{v.name:28s} {label:17s} {est:>12s} {ci:>27s} {v.band.unit}")
+        if self.watches:
+            rows.append(WATCH_NOTE)
         for name, p in self.fit.nuisance.items():
             rows.append(
                 f"fitted, not judged: {name} = {p['estimate']:.5g} +- {p['std_error']:.2g} "

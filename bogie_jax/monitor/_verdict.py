@@ -27,6 +27,11 @@ Decision rule (documented in the README, "Verdict rules"):
   Fisher information of the actual runs, or (no test rejecting) I is wider than the healthy
   band (then no value of the estimate could show the element healthy).
 - `healthy`: otherwise: the data give no evidence, at level alpha, that the element left its band.
+- `watch` (a flag beside the verdict, not an alarm): the element is judged `healthy` or `not
+  identifiable` (no test rejecting), but its 95 % interval lies wholly outside the healthy
+  band. Each element on its band's edge is flagged with probability at most 2.5 % (one
+  interval's tail), so a bogie's flags are not held to `alpha`: a flag asks for a longer record
+  or another run, not for a repair.
 
 The reported 95 % interval is estimate +- t standard errors, independent of `alpha`: t the
 0.975 quantile of Student's t with the standard error's effective degrees of freedom (`dof`;
@@ -105,7 +110,8 @@ class Verdict:
 
     - `name`: element or group name; `verdict`: one of `VERDICTS`;
     - `estimate`, `std_error` [unit]; `ci95`: the 95 % interval (module docstring);
-    - `band`: the `ToleranceBand`; `evidence`: the decision interval, its z and the reason.
+    - `band`: the `ToleranceBand`; `evidence`: the decision interval, its z and the reason
+      (and `watch`: see the property).
     """
 
     name: str
@@ -115,6 +121,13 @@ class Verdict:
     ci95: tuple[float, float]
     band: ToleranceBand
     evidence: dict
+
+    @property
+    def watch(self) -> str | None:
+        """`"above"` or `"below"` where the 95 % interval lies wholly on that side of the
+        healthy band while no test rejected the band (verdict `healthy` or `not identifiable`:
+        module docstring); else `None`."""
+        return self.evidence.get("watch")
 
     def to_dict(self) -> dict:
         return {
@@ -184,7 +197,8 @@ def judge(
     h_lo, h_hi = band.healthy
     evidence = {"decision_interval": [lo, hi], "z": z}
     wide = hi - lo > h_hi - h_lo
-    if not (identifiable and math.isfinite(std_error) and std_error >= 0):
+    judged = identifiable and math.isfinite(std_error) and std_error >= 0
+    if not judged:
         verdict, reason = "not identifiable", "the sensors do not determine this element"
     else:
         below = estimate < h_lo
@@ -207,6 +221,21 @@ def judge(
     evidence["reason"] = reason
     evidence["ci95_dof"] = float(dof) if math.isfinite(dof) else None
     half = t_quantile(0.975, dof) * std_error
-    return Verdict(
-        name, verdict, estimate, std_error, (estimate - half, estimate + half), band, evidence
-    )
+    ci95 = (estimate - half, estimate + half)
+    if judged and verdict in ("healthy", "not identifiable"):
+        if ci95[0] > h_hi:
+            evidence["watch"] = "above"
+        elif ci95[1] < h_lo:
+            evidence["watch"] = "below"
+    return Verdict(name, verdict, estimate, std_error, ci95, band, evidence)
+
+
+WATCH_NOTE = (
+    "* watch: the 95 % interval lies outside the healthy band, but no test rejects the band "
+    "at the bogie's false-alarm rate; a longer record or another run can decide"
+)
+
+
+def verdict_label(verdict: str, watch: str | None) -> str:
+    """The verdict as tables show it: `healthy*` where the element is on watch."""
+    return f"{verdict}*" if watch else verdict
