@@ -97,6 +97,7 @@ from bogie_jax.measure import default_sensor_layout, synthetic_measurement
 from bogie_jax.monitor import (
     DEFAULT_CANDIDATES,
     DEFECT_SCENARIOS,
+    interval_outside,
     monitor,
     nonlinear_options,
     recorded_track,
@@ -453,8 +454,7 @@ def on_watch(v: dict) -> bool:
         return bool(v["watch"])
     if v["verdict"] in ALARMS or v["identifiable"] == "no" or v["std_error"] is None:
         return False
-    (lo, hi), (band_lo, band_hi) = v["ci95"], v["healthy_band"]
-    return bool(lo > band_hi or hi < band_lo)  # False for NaN
+    return interval_outside(v["ci95"], v["healthy_band"]) is not None
 
 
 def case_outcome(rec: dict) -> dict:

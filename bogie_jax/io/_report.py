@@ -273,7 +273,6 @@ def write_report(
             )
             + "."
         )
-
     lines = [f"# {title}", "", f"Date {record['date']}. {record.get('source', '')}", ""]
     lines += [f"**{summary}**", ""]
     warning = misfit_warning((record.get("fit") or {}).get("misfit_ratio"))

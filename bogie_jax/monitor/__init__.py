@@ -82,6 +82,7 @@ from ._verdict import (
     ToleranceBand as ToleranceBand,
     Verdict as Verdict,
     decision_z as decision_z,
+    interval_outside as interval_outside,
     judge as judge,
     verdict_label as verdict_label,
 )

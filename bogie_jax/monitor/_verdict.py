@@ -222,12 +222,20 @@ def judge(
     evidence["ci95_dof"] = float(dof) if math.isfinite(dof) else None
     half = t_quantile(0.975, dof) * std_error
     ci95 = (estimate - half, estimate + half)
-    if judged and verdict in ("healthy", "not identifiable"):
-        if ci95[0] > h_hi:
-            evidence["watch"] = "above"
-        elif ci95[1] < h_lo:
-            evidence["watch"] = "below"
+    side = interval_outside(ci95, band.healthy)
+    if judged and verdict in ("healthy", "not identifiable") and side:
+        evidence["watch"] = side
     return Verdict(name, verdict, estimate, std_error, ci95, band, evidence)
+
+
+def interval_outside(interval, healthy) -> str | None:
+    """`"above"` or `"below"` where `interval` `(lo, hi)` lies wholly on that side of the
+    band `healthy` `(lo, hi)`; else `None` (also for NaN)."""
+    if interval[0] > healthy[1]:
+        return "above"
+    if interval[1] < healthy[0]:
+        return "below"
+    return None
 
 
 WATCH_NOTE = (
