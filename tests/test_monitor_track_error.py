@@ -58,13 +58,13 @@ def test_covariance_of_the_shift_matches_its_closed_form():
     g = rng.standard_normal((m, 3 * n_s)) * 1e3
     y = rng.standard_normal(m)
 
-    def evaluate_with(tracks):
+    def evaluate_at(tracks, phi):
         e = np.asarray(tracks[0].values) - values
-        return y - g @ e.reshape(-1), -a
+        return y - a @ phi - g @ e.reshape(-1), -a
 
     rms, draws = 3e-4, 2000
     effect = track_error_effect(
-        evaluate_with, [track], rms=rms, semi_distance=SEMI, draws=draws, seed=3
+        evaluate_at, [track], np.zeros(n), rms=rms, semi_distance=SEMI, draws=draws, seed=3
     )
     got = effect.covariance
     assert effect.draws == draws
@@ -111,13 +111,13 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
         x = record[:, 0]
         a_hat = float(x @ y / (x @ x))
 
-        def evaluate_with(tracks, a_hat=a_hat):
+        def evaluate_at(tracks, phi):
             x = np.asarray(tracks[0].values)[:, 0]
-            return y - a_hat * x, -x[:, None]
+            return y - phi[0] * x, -x[:, None]
 
         effect = track_error_effect(
-            evaluate_with, [TrackIrregularity(0.0, 0.5, record)], rms=rms, semi_distance=SEMI,
-            draws=16, seed=int(rng.integers(2**31)),
+            evaluate_at, [TrackIrregularity(0.0, 0.5, record)], np.array([a_hat]), rms=rms,
+            semi_distance=SEMI, draws=16, seed=int(rng.integers(2**31)),
         )  # fmt: skip
         fitted.append(a_hat)
         corrected.append(a_hat - float(effect.bias[0]))
@@ -129,21 +129,70 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
     assert abs(corrected_bias) < 0.02 and abs(corrected_bias) < 0.25 * abs(fitted_bias)
 
 
+def test_each_draw_is_refitted_to_the_perturbed_records_minimum():
+    """A model nonlinear in its coordinate, as `monitor`'s ln p: y = exp(phi) u fitted on a
+    record x = u + e. Oracle: each draw's refit has the closed form phi_e = ln(x_e^T y /
+    |x_e|^2) on the draw's record x_e (the same `default_rng(seed)` realisations), and the bias
+    is the mean of phi_e - phi_0. One Gauss-Newton step gives exp(phi_e - phi_0) - 1 instead of
+    phi_e - phi_0 (the step is linear in the shift, the refit is not): its mean misses the
+    second-order term that the bias is made of; the iterated refit reaches the oracle."""
+    rng = np.random.default_rng(7)
+    n = 61
+    u = np.zeros((n, 3))
+    u[:, 0] = _record(rng, n)[:, 0]
+    u[:, 0] -= u[:, 0].mean()
+    y = 1.5 * u[:, 0]
+    rms = float(np.sqrt(0.3 * np.mean(u[:, 0] ** 2)))
+    record = u + record_error(u, rms, SEMI, rng)
+    x = record[:, 0]
+    phi0 = np.array([np.log(x @ y / (x @ x))])
+
+    def evaluate_at(tracks, phi):
+        x = np.asarray(tracks[0].values)[:, 0]
+        return y - np.exp(phi[0]) * x, -np.exp(phi[0]) * x[:, None]
+
+    track = TrackIrregularity(0.0, 0.5, record)
+    effect = track_error_effect(
+        evaluate_at, [track], phi0, rms=rms, semi_distance=SEMI, draws=40, refit_steps=6, seed=11
+    )
+    draws = np.random.default_rng(11)
+    refits = []
+    for _ in range(40):
+        x_e = x + record_error(record, rms, SEMI, draws)[:, 0]
+        refits.append(np.log(x_e @ y / (x_e @ x_e)) - phi0[0])
+    oracle = np.mean(refits)
+    assert effect.refit_draws == 40 and effect.bias_by_step.shape == (6, 1)
+    assert effect.bias[0] == pytest.approx(oracle, abs=1e-10)
+    one_step = effect.bias_by_step[0, 0]
+    assert one_step == pytest.approx(np.mean(np.expm1(refits)), abs=1e-10)
+    assert abs(one_step - oracle) > 0.05 * abs(oracle)  # what one step would have missed
+
+
 def test_a_failed_draw_is_left_out():
+    """A draw whose first evaluation fails is left out of everything; one whose later refit
+    step fails, of the bias only."""
     rng = np.random.default_rng(2)
     values = _record(rng, 41)
     track = TrackIrregularity(0.0, 0.5, values)
     calls = {"n": 0}
 
-    def evaluate_with(tracks):
+    def evaluate_at(tracks, phi):
         calls["n"] += 1
-        r = np.full(10, float(np.sum(np.asarray(tracks[0].values) - values)))
-        r = r if calls["n"] != 3 else np.full(10, np.inf)  # draw 2 fails
+        r = np.full(10, float(np.sum(np.asarray(tracks[0].values) - values))) - phi.sum()
+        r = r if calls["n"] not in (3, 6) else np.full(10, np.inf)
         return r, np.eye(10)[:, :2]
 
-    effect = track_error_effect(evaluate_with, [track], rms=1e-4, semi_distance=SEMI, draws=5)
-    assert effect.draws == 4 and effect.covariance.shape == (2, 2)
+    # calls: 1 the fit; draw 1: 2, 3 (its second step fails); draw 2: 4, 5; draw 3: 6 (fails)
+    effect = track_error_effect(
+        evaluate_at, [track], np.zeros(2), rms=1e-4, semi_distance=SEMI, draws=5, refit_steps=2
+    )
+    assert effect.draws == 4 and effect.refit_draws == 3 and effect.covariance.shape == (2, 2)
     assert np.all(np.isfinite(effect.covariance)) and np.all(np.isfinite(effect.bias))
+    with pytest.raises(ValueError, match="refit_steps"):
+        track_error_effect(
+            evaluate_at, [track], np.zeros(2), rms=1e-4, semi_distance=SEMI, draws=2,
+            refit_steps=0,
+        )  # fmt: skip
 
 
 def test_model_error_adds_to_the_covariance():

@@ -403,14 +403,14 @@ def monitor(
     if track_error > 0 and fit is not None and fit.status != "failed":
         say(f"track record error {1e3 * track_error:.3g} mm: {track_error_draws} realisations")
 
-        def evaluate_with(records):
+        def evaluate_at(records, phi):
             perturbed = with_active(joint_objective(records))
-            r, jac = jax.block_until_ready(_JACOBIAN(perturbed, jnp.asarray(x_fit)))
+            r, jac = jax.block_until_ready(_JACOBIAN(perturbed, jnp.asarray(to_x @ phi)))
             jac = project(np.asarray(jac) @ to_x)
             return project(np.asarray(r)) * rows, jac * rows[:, None]
 
         track_effect = track_error_effect(
-            evaluate_with, tracks, rms=track_error, draws=track_error_draws,
+            evaluate_at, tracks, fit.phi, rms=track_error, draws=track_error_draws,
             semi_distance=float(np.asarray(params.contact.contact_semi_distance)),
         )  # fmt: skip
         timings["track_error_s"] = time.perf_counter() - t0
@@ -606,6 +606,11 @@ def _verdicts(
                 estimate_fitted=float(c.nominal * np.exp(fit.phi[j])),  # before the bias
                 track_record_bias=(  # in ln p, removed or not (`_corrected`)
                     float(track_effect.bias[j]) if track_effect is not None else 0.0
+                ),
+                track_record_bias_by_step=(  # after each refit step: the refit's convergence
+                    [float(b) for b in track_effect.bias_by_step[:, j]]
+                    if track_effect is not None and track_effect.bias_by_step is not None
+                    else []
                 ),
             )
             if not active.all():

@@ -70,6 +70,9 @@ def record_error(values, rms: float, semi_distance: float, rng) -> np.ndarray:
     return error * np.where(now > 0, target / np.where(now > 0, now, 1.0), 0.0)
 
 
+REFIT_STEPS = 3  # Gauss-Newton steps of each draw's refit (module docstring)
+
+
 class TrackErrorEffect(NamedTuple):
     """The track records' error in the fitted coordinates (module docstring)."""
 
@@ -77,19 +80,29 @@ class TrackErrorEffect(NamedTuple):
     bias: np.ndarray  # (n,): the estimates' bias from it (SIMEX), to subtract
     draws: int  # realisations used (a failed solve's left out)
     misfit_ss: float = float("nan")  # mean |(I - J J^+) dr|^2: the residual SS it leaves
+    bias_by_step: np.ndarray | None = None  # (steps, n): the bias after each refit step
+    refit_draws: int = 0  # realisations whose every refit step solved (the bias's mean)
 
 
-def track_error_effect(evaluate_with, tracks, *, rms, semi_distance, draws, seed=0):
-    """The `TrackErrorEffect` (module docstring) at the fit's estimate.
+def track_error_effect(
+    evaluate_at, tracks, phi, *, rms, semi_distance, draws, refit_steps=REFIT_STEPS, seed=0
+):
+    """The `TrackErrorEffect` (module docstring) at the fit's estimate `phi` (n,).
 
-    - `evaluate_with(tracks) -> (r (m,), J (m, n))`: the fit's residuals and Jacobian at its
-      estimate with these track records (in the fit's weights, projection and coordinates);
+    - `evaluate_at(tracks, phi) -> (r (m,), J (m, n))`: the fit's residuals and Jacobian at
+      the coordinates `phi` with these track records (in the fit's weights, projection and
+      coordinates);
     - `tracks`: the runs' `TrackIrregularity` records; `rms` [m], `semi_distance` b_0 [m];
-    - `draws` realisations from `numpy.random.default_rng(seed)`; a draw whose residuals or
-      Jacobian are not finite (a failed solve) is left out.
+    - `draws` realisations from `numpy.random.default_rng(seed)`, each refitted by
+      `refit_steps` (>= 1) Gauss-Newton steps; a draw whose residuals or Jacobian are not
+      finite (a failed solve) is left out: of everything at its first evaluation, of the bias
+      at a later one.
     """
+    if not (isinstance(refit_steps, int) and refit_steps >= 1):
+        raise ValueError(f"`refit_steps` = {refit_steps!r} must be an integer >= 1")
     rng = np.random.default_rng(seed)
-    r0, j0 = (np.asarray(a, dtype=float) for a in evaluate_with(list(tracks)))
+    phi = np.asarray(phi, dtype=float)
+    r0, j0 = (np.asarray(a, dtype=float) for a in evaluate_at(list(tracks), phi))
     pinv = np.linalg.pinv(j0)
     step0 = pinv @ r0  # ~0 at a converged fit; subtracted so that no error gives no shift
     first, refit, misfit = [], [], []
@@ -100,16 +113,28 @@ def track_error_effect(evaluate_with, tracks, *, rms, semi_distance, draws, seed
             )
             for t in tracks
         ]
-        r, jac = (np.asarray(a, dtype=float) for a in evaluate_with(perturbed))
-        if np.all(np.isfinite(r)) and np.all(np.isfinite(jac)):
-            change = r - r0
-            first.append(-pinv @ change)
-            misfit.append(float(np.sum((change - j0 @ (pinv @ change)) ** 2)))
-            refit.append(-(np.linalg.pinv(jac) @ r) + step0)
+        r, jac = (np.asarray(a, dtype=float) for a in evaluate_at(perturbed, phi))
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
+            continue
+        change = r - r0
+        first.append(-pinv @ change)
+        misfit.append(float(np.sum((change - j0 @ (pinv @ change)) ** 2)))
+        path, x = [], phi
+        for step in range(refit_steps):
+            if step:
+                r, jac = (np.asarray(a, dtype=float) for a in evaluate_at(perturbed, x))
+                if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
+                    break
+            x = x - np.linalg.pinv(jac) @ r
+            path.append(x - phi + step0)
+        if len(path) == refit_steps:
+            refit.append(path)
     n = j0.shape[1]
     if not first:
         return TrackErrorEffect(np.full((n, n), np.nan), np.full(n, np.nan), 0)
     s = np.array(first)
+    by_step = np.mean(refit, axis=0) if refit else np.full((refit_steps, n), np.nan)
     return TrackErrorEffect(
-        s.T @ s / len(first), np.mean(refit, axis=0), len(first), float(np.mean(misfit))
-    )
+        s.T @ s / len(first), by_step[-1], len(first), float(np.mean(misfit)), by_step,
+        len(refit),
+    )  # fmt: skip
