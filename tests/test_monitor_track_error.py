@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from bogie_jax.cost import covariance_from_jacobian, with_model_error
-from bogie_jax.monitor import record_error, track_error_effect
-from bogie_jax.track import TrackIrregularity
+from bogie_jax.monitor import record_error, spectrum_amplitude, track_error_effect
+from bogie_jax.track import TrackIrregularity, TrackReference
 
 
 SEMI = 0.7465  # [m] contact semi-distance b_0
@@ -40,6 +40,35 @@ def test_record_error_has_the_level_and_the_spectrum_of_the_model():
     flat = values.copy()
     flat[:, 2] = 0.0
     assert np.all(record_error(flat, rms, SEMI, rng)[:, 2] == 0.0)
+
+
+def test_errors_of_a_synthetic_record_take_its_spectrum_within_its_band():
+    """A record of a synthetic reference (ERRI B176 low): the errors' amplitude spectrum is the
+    square root of the PSD's closed form (reference doc 6.1: alignment and level proportional
+    to 1 / ((w^2 + w_r^2)(w^2 + w_c^2)), cross level to w^2 / (D (w^2 + w_s^2)), w_c =
+    0.8246, w_r = 0.0206, w_s = 0.4380 rad/m) at the record's FFT frequencies within the band,
+    zero outside; a record without a synthetic reference keeps its own spectrum."""
+    reference = TrackReference(spectrum="erri-low", seed=3, length=120.0, band=(3.0, 40.0))
+    n, ds = 480, 0.25
+    rng = np.random.default_rng(8)
+    track = TrackIrregularity(0.0, ds, _record(rng, n))
+    amplitude = spectrum_amplitude(track, reference)
+    w = 2 * np.pi * np.arange(n // 2 + 1) / (n * ds)
+    inside = (w >= 2 * np.pi / 40.0) & (w <= 2 * np.pi / 3.0)
+    d = (w**2 + 0.0206**2) * (w**2 + 0.8246**2)
+    shape = np.stack([1 / d, 1 / d, w**2 / (d * (w**2 + 0.4380**2))], axis=1)
+    assert np.all(amplitude[~inside] == 0.0) and inside.sum() == 38
+    ratio = amplitude[inside] ** 2 / shape[inside]
+    np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0], ratio.shape), rtol=1e-9)
+    e = record_error(track.values, 3e-4, SEMI, rng, amplitude)
+    got = np.abs(np.fft.rfft(e, axis=0))
+    assert np.all(got[~inside] < 1e-12 * got.max())
+    scale = got[inside] / amplitude[inside]
+    np.testing.assert_allclose(scale, np.broadcast_to(scale[0], scale.shape), rtol=1e-9)
+    own = np.abs(np.fft.rfft(track.values - np.mean(track.values, axis=0), axis=0))
+    np.testing.assert_allclose(spectrum_amplitude(track, None), own, atol=1e-12 * own.max())
+    measured = TrackReference(spectrum=None, file="record.csv")
+    np.testing.assert_allclose(spectrum_amplitude(track, measured), own, atol=1e-12 * own.max())
 
 
 def test_covariance_of_the_shift_matches_its_closed_form():

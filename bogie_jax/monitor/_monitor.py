@@ -411,6 +411,7 @@ def monitor(
 
         track_effect = track_error_effect(
             evaluate_at, tracks, fit.phi, rms=track_error, draws=track_error_draws,
+            references=[m.track for m in measurements],
             semi_distance=float(np.asarray(params.contact.contact_semi_distance)),
         )  # fmt: skip
         timings["track_error_s"] = time.perf_counter() - t0

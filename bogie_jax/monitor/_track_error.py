@@ -50,16 +50,33 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..track import TrackIrregularity
+from ..track import SPECTRA, TrackIrregularity, spectrum_from_name
 
 
-def record_error(values, rms: float, semi_distance: float, rng) -> np.ndarray:
+def spectrum_amplitude(track: TrackIrregularity, reference=None) -> np.ndarray:
+    """The amplitude spectrum `(n // 2 + 1, 3)` that shapes the errors of the record `track`
+    (n samples, spacing ds [m]): the square root of `reference`'s PSD at omega_k = 2 pi k /
+    (n ds) [rad/m] within its wavelength band where `reference` is a synthetic
+    `TrackReference` (the expected shape), else `|rfft(values - mean)|` (the record's own)."""
+    v = np.asarray(track.values, dtype=float)
+    n = v.shape[0]
+    if reference is None or reference.file is not None or reference.spectrum not in SPECTRA:
+        return np.abs(np.fft.rfft(v - v.mean(axis=0), axis=0))
+    omega = 2.0 * np.pi * np.arange(n // 2 + 1) / (n * float(np.asarray(track.ds)))
+    lo, hi = reference.band
+    inside = (omega >= 2.0 * np.pi / hi) & (omega <= 2.0 * np.pi / lo) & (omega > 0)
+    psd = np.asarray(spectrum_from_name(reference.spectrum)(omega), dtype=float)
+    return np.where(inside[:, None], np.sqrt(np.maximum(psd, 0.0)), 0.0)
+
+
+def record_error(values, rms: float, semi_distance: float, rng, amplitude=None) -> np.ndarray:
     """One realisation `(n, 3)` of a record's error (module docstring) for the record
     `values` `(n, 3)` (alignment [m], vertical [m], cross level [rad]); `rng`: a numpy
-    `Generator`. A channel that is zero throughout gets no error."""
+    `Generator`; `amplitude` `(n // 2 + 1, 3)`: the spectrum's shape (`spectrum_amplitude`;
+    default the record's own). A channel without power gets no error."""
     v = np.asarray(values, dtype=float)
     n = v.shape[0]
-    spectrum = np.abs(np.fft.rfft(v - v.mean(axis=0), axis=0))
+    spectrum = np.abs(np.fft.rfft(v - v.mean(axis=0), axis=0)) if amplitude is None else amplitude
     phases = rng.uniform(0.0, 2.0 * np.pi, spectrum.shape)
     phases[0] = 0.0  # the mean (zero) stays real
     if n % 2 == 0:
@@ -70,7 +87,7 @@ def record_error(values, rms: float, semi_distance: float, rng) -> np.ndarray:
     return error * np.where(now > 0, target / np.where(now > 0, now, 1.0), 0.0)
 
 
-REFIT_STEPS = 3  # Gauss-Newton steps of each draw's refit (module docstring)
+REFIT_STEPS = 2  # Gauss-Newton steps of each draw's refit (module docstring)
 
 
 class TrackErrorEffect(NamedTuple):
@@ -85,14 +102,17 @@ class TrackErrorEffect(NamedTuple):
 
 
 def track_error_effect(
-    evaluate_at, tracks, phi, *, rms, semi_distance, draws, refit_steps=REFIT_STEPS, seed=0
-):
+    evaluate_at, tracks, phi, *, rms, semi_distance, draws, refit_steps=REFIT_STEPS,
+    references=None, seed=0,
+):  # fmt: skip
     """The `TrackErrorEffect` (module docstring) at the fit's estimate `phi` (n,).
 
     - `evaluate_at(tracks, phi) -> (r (m,), J (m, n))`: the fit's residuals and Jacobian at
       the coordinates `phi` with these track records (in the fit's weights, projection and
       coordinates);
     - `tracks`: the runs' `TrackIrregularity` records; `rms` [m], `semi_distance` b_0 [m];
+      `references`: the runs' `TrackReference`s or `None`s, whose spectra shape the errors
+      where synthetic (`spectrum_amplitude`);
     - `draws` realisations from `numpy.random.default_rng(seed)`, each refitted by
       `refit_steps` (>= 1) Gauss-Newton steps; a draw whose residuals or Jacobian are not
       finite (a failed solve) is left out: of everything at its first evaluation, of the bias
@@ -102,6 +122,8 @@ def track_error_effect(
         raise ValueError(f"`refit_steps` = {refit_steps!r} must be an integer >= 1")
     rng = np.random.default_rng(seed)
     phi = np.asarray(phi, dtype=float)
+    references = [None] * len(tracks) if references is None else list(references)
+    shapes = [spectrum_amplitude(t, ref) for t, ref in zip(tracks, references)]
     r0, j0 = (np.asarray(a, dtype=float) for a in evaluate_at(list(tracks), phi))
     pinv = np.linalg.pinv(j0)
     step0 = pinv @ r0  # ~0 at a converged fit; subtracted so that no error gives no shift
@@ -109,9 +131,11 @@ def track_error_effect(
     for _ in range(draws):
         perturbed = [
             TrackIrregularity(
-                t.s0, t.ds, np.asarray(t.values) + record_error(t.values, rms, semi_distance, rng)
+                t.s0,
+                t.ds,
+                np.asarray(t.values) + record_error(t.values, rms, semi_distance, rng, shape),
             )
-            for t in tracks
+            for t, shape in zip(tracks, shapes)
         ]
         r, jac = (np.asarray(a, dtype=float) for a in evaluate_at(perturbed, phi))
         if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
