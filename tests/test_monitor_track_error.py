@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bogie_jax.cost import covariance_from_jacobian, with_model_error
-from bogie_jax.monitor import record_error, spectrum_amplitude, track_error_effect
+from bogie_jax.monitor import record_error, track_error_effect
 from bogie_jax.track import TrackIrregularity, TrackReference
 
 
@@ -42,33 +42,34 @@ def test_record_error_has_the_level_and_the_spectrum_of_the_model():
     assert np.all(record_error(flat, rms, SEMI, rng)[:, 2] == 0.0)
 
 
-def test_errors_of_a_synthetic_record_take_its_spectrum_within_its_band():
-    """A record of a synthetic reference (ERRI B176 low): the errors' amplitude spectrum is the
-    square root of the PSD's closed form (reference doc 6.1: alignment and level proportional
-    to 1 / ((w^2 + w_r^2)(w^2 + w_c^2)), cross level to w^2 / (D (w^2 + w_s^2)), w_c =
-    0.8246, w_r = 0.0206, w_s = 0.4380 rad/m) at the record's FFT frequencies within the band,
-    zero outside; a record without a synthetic reference keeps its own spectrum."""
-    reference = TrackReference(spectrum="erri-low", seed=3, length=120.0, band=(3.0, 40.0))
-    n, ds = 480, 0.25
+def test_errors_of_a_synthetic_record_are_new_realisations_of_its_synthesis():
+    """A record of a synthetic reference: each error is the reference's synthesis with a new
+    seed (its spectrum, band and fades: zero at both ends), scaled to the RMS per channel; the
+    errors of one generator differ from each other and from the record; a record without a
+    synthetic reference, or of another length, gets the record with random phases."""
+    import dataclasses
+
+    reference = TrackReference(spectrum="erri-low", seed=3, length=120.0)
+    track = reference.build()
+    values = np.asarray(track.values)
+    rms = 3e-4
     rng = np.random.default_rng(8)
-    track = TrackIrregularity(0.0, ds, _record(rng, n))
-    amplitude = spectrum_amplitude(track, reference)
-    w = 2 * np.pi * np.arange(n // 2 + 1) / (n * ds)
-    inside = (w >= 2 * np.pi / 40.0) & (w <= 2 * np.pi / 3.0)
-    d = (w**2 + 0.0206**2) * (w**2 + 0.8246**2)
-    shape = np.stack([1 / d, 1 / d, w**2 / (d * (w**2 + 0.4380**2))], axis=1)
-    assert np.all(amplitude[~inside] == 0.0) and inside.sum() == 38
-    ratio = amplitude[inside] ** 2 / shape[inside]
-    np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0], ratio.shape), rtol=1e-9)
-    e = record_error(track.values, 3e-4, SEMI, rng, amplitude)
-    got = np.abs(np.fft.rfft(e, axis=0))
-    assert np.all(got[~inside] < 1e-12 * got.max())
-    scale = got[inside] / amplitude[inside]
-    np.testing.assert_allclose(scale, np.broadcast_to(scale[0], scale.shape), rtol=1e-9)
-    own = np.abs(np.fft.rfft(track.values - np.mean(track.values, axis=0), axis=0))
-    np.testing.assert_allclose(spectrum_amplitude(track, None), own, atol=1e-12 * own.max())
-    measured = TrackReference(spectrum=None, file="record.csv")
-    np.testing.assert_allclose(spectrum_amplitude(track, measured), own, atol=1e-12 * own.max())
+    e1, e2 = (record_error(values, rms, SEMI, rng, reference) for _ in range(2))
+    seeds = np.random.default_rng(8).integers(0, 2**31 - 1, 2)
+    for e, seed in zip((e1, e2), seeds):
+        other = np.asarray(dataclasses.replace(reference, seed=int(seed)).build().values)
+        target = np.array([rms, rms, rms / (2 * SEMI)])
+        np.testing.assert_allclose(e, other * target / np.sqrt(np.mean(other**2, axis=0)))
+        np.testing.assert_allclose(np.sqrt(np.mean(e**2, axis=0)), target, rtol=1e-12)
+        assert np.all(e[[0, -1]] == 0.0)  # the synthesis fades in and out
+    assert abs(np.corrcoef(e1[:, 1], e2[:, 1])[0, 1]) < 0.5
+    assert abs(np.corrcoef(e1[:, 1], values[:, 1])[0, 1]) < 0.5
+    own = np.abs(np.fft.rfft(values - values.mean(axis=0), axis=0))
+    for ref in (None, TrackReference(spectrum=None, file="record.csv"),
+                dataclasses.replace(reference, length=80.0)):  # fmt: skip
+        e = np.abs(np.fft.rfft(record_error(values, rms, SEMI, rng, ref), axis=0))
+        ratio = e[1:-1] / own[1:-1]
+        np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0], ratio.shape), rtol=1e-6)
 
 
 def test_covariance_of_the_shift_matches_its_closed_form():

@@ -73,7 +73,6 @@ from ._student_t import (
 from ._track_error import (
     TrackErrorEffect as TrackErrorEffect,
     record_error as record_error,
-    spectrum_amplitude as spectrum_amplitude,
     track_error_effect as track_error_effect,
 )
 from ._trend import Trend as Trend, trend as trend
