@@ -486,16 +486,15 @@ def _corrected(fit, track_effect, n_log):
     """The fitted coordinates less the track records' bias (`_track_error.py`), and where it was
     removed: among the first `n_log` (ln p / p_nominal) coordinates, where the records'
     first-order spread and the bias are both under `SIMEX_MAX_SPREAD`. A second-order bias
-    extrapolated from one Gauss-Newton step is trusted only there: in ln p the step's own error
-    grows with the spread squared (the detection trial, 24 cases: corrected everywhere, the weakly
-    identified primary dampers, spread about 16 %, moved by -0.3 standard errors on average
-    from an unbiased start; the anti-yaw dampers, 6 %, from +0.8 to +0.4; the limit was chosen
-    on that trial, and `benchmarks/detection.py` tests it on the other 76 cases). The bias is
-    not bounded by the spread: the spread falls with the record's length and the bias does not
-    (8 s runs, 30 cases, with the bias removed only within one spread: the secondary lateral
-    dampers' mean error +1.6 standard errors, coverage 63 %). The step over-estimates the
-    primary springs' bias (1 s runs, 100 cases: about one spread, their errors about 0.35 of
-    it; `benchmarks/README.md`). Nuisance coordinates keep their fitted values."""
+    extrapolated from a few Gauss-Newton steps is trusted only there: in ln p the steps' own
+    error grows with the spread squared (measured with one step, the detection trial, 24 cases:
+    corrected everywhere, the weakly identified primary dampers, spread about 16 %, moved by
+    -0.3 standard errors on average from an unbiased start; the anti-yaw dampers, 6 %, from +0.8
+    to +0.4; the limit was chosen on that trial, and `benchmarks/detection.py` tests it on the
+    other 76 cases). The bias is not bounded by the spread: the spread falls with the record's
+    length and the bias does not (8 s runs, 30 cases, with the bias removed only within one
+    spread: the secondary lateral dampers' mean error +1.6 standard errors, coverage 63 %).
+    Nuisance coordinates keep their fitted values."""
     if track_effect is None:
         return fit.phi, np.zeros(fit.phi.size, dtype=bool)
     bias = np.asarray(track_effect.bias, dtype=float)

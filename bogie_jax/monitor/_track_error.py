@@ -8,18 +8,21 @@ sandwich covariance, estimated from the residuals, misses it. With longer record
 errors shrink but this shift does not (detection benchmark: 95 % coverage 90 % with 1 s runs,
 87 % with 2 s).
 
-Model: the error of each channel of a record is a stationary random process, scaled to RMS
-`rms` [m] in alignment and vertical level and `rms / (2 b_0)` [rad] in cross level (a level
-error of `rms` on each rail over the contact distance 2 b_0); the runs' errors are independent.
-Its spectral shape (`spectrum_amplitude`): where the run names a synthetic `TrackReference`,
-that spectrum's PSD within its wavelength band (a recording error shaped like the track is what
-`recorded_track` simulates); otherwise the record's own amplitude spectrum. A realisation takes
-that amplitude spectrum with Fourier phases drawn at random (uniform). The record's own
-spectrum is one realisation's: over a short record its few long-wave bins set the RMS, so the
-share of the shorter waves that drive the bogie differs from the expected one by up to a factor
-of 3 (two 112 m records of the detection benchmark's 1 s runs, 5-10 m waves: 0.03 and 0.12 of the
-vertical level's power, 0.04 expected and in the benchmark's errors), and the bias below with
-it. A measured error spectrum would replace both.
+Model: the error of each channel of a record is a random process, scaled to RMS `rms` [m] in
+alignment and vertical level and `rms / (2 b_0)` [rad] in cross level (a level error of `rms`
+on each rail over the contact distance 2 b_0); the runs' errors are independent
+(`record_error`). Where the run names a synthetic `TrackReference`, a realisation is that
+reference's synthesis with a new seed: its spectrum, wavelength band and fades (a recording
+error shaped like the track is what `recorded_track` simulates). Otherwise it is the record
+with its Fourier phases drawn at random (uniform; the amplitude spectrum kept). The record's
+own spectrum is one realisation's, not the process's: over a short record its few long-wave
+bins set the RMS, so the share of the shorter waves that drive the bogie differs from the
+expected one by up to a factor of 3 (two 112 m records of the detection benchmark's 1 s runs,
+5-10 m waves: 0.03 and 0.12 of the vertical level's power, 0.04-0.05 in the synthesis's
+realisations), and its draws are stationary where the synthesis fades in over the first 20 m,
+a third or more of a 1 s run. On the first two detection cases at 1 s, from the exact track,
+the primary springs' bias came out -0.7 to -2.1 standard errors with the record's spectrum and
+-0.8 to +0.3 with the synthesis's. A measured error spectrum would replace both.
 
 Propagation, to first order at the fit's end: the error e shifts the estimates by
 `dv = -J^+ (r(record + e) - r(record))` (J and r in the fitted coordinates, with the fit's
