@@ -38,8 +38,9 @@ Steps (each documented where it is done):
    `bogie_jax.cost.relative_to_nominal`, so that an element fitted near zero keeps its
    standard error), plus, with a `track_error`, the track records' error term
    (`_track_error.py`: the estimates' shift by realisations of the records' error, each one
-   more evaluation of the compiled program; the same realisations give the records' bias,
-   removed from the estimates by simulation-extrapolation), and a verdict per
+   more evaluation of the compiled program; the same realisations, each refitted by two
+   Gauss-Newton steps (one more evaluation), give the records' bias, removed from the estimates
+   by simulation-extrapolation), and a verdict per
    coordinate by `judge` (`_verdict.py`), the decision z set by `false_alarm_rate` over the
    judged coordinates (Bonferroni); the judged block of the covariance of all fitted
    coordinates (nuisance included), so the intervals carry the nuisance's uncertainty; an
@@ -175,8 +176,9 @@ def monitor(
       `run_misfit` times better); the verdicts then say they used fewer runs;
     - `track_error`: RMS [m] of the track records' error in alignment and vertical level
       (cross level: over the contact distance), propagated into the estimates' covariance by
-      `track_error_draws` (>= 2) realisations shaped like the records, which also give the
-      estimates' bias from it, removed (`_track_error.py`; the fitted value stays in each
+      `track_error_draws` (>= 2) realisations (of the run's synthetic track where the
+      measurement names one, else shaped like the record), which also give the estimates'
+      bias from it, removed (`_track_error.py`; the fitted value stays in each
       verdict's evidence, `estimate_fitted`); default 0: the records are taken as exact.
     - `options`, `settings`, `weights`: as `make_objective`; `progress`: a callable taking one
       line of text, or `None`.

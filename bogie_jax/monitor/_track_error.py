@@ -20,9 +20,10 @@ bins set the RMS, so the share of the shorter waves that drive the bogie differs
 expected one by up to a factor of 3 (two 112 m records of the detection benchmark's 1 s runs,
 5-10 m waves: 0.03 and 0.12 of the vertical level's power, 0.04-0.05 in the synthesis's
 realisations), and its draws are stationary where the synthesis fades in over the first 20 m,
-a third or more of a 1 s run. On the first two detection cases at 1 s, from the exact track,
-the primary springs' bias came out -0.7 to -2.1 standard errors with the record's spectrum and
--0.8 to +0.3 with the synthesis's. A measured error spectrum would replace both.
+a third or more of a 1 s run. On the detection benchmark's 100 cases at 1 s, the bias
+removed with draws of the record's spectrum left the primary springs +0.5 to +0.7 standard
+errors high on average, with the synthesis's draws -0.2 to -0.05 (`benchmarks/README.md`). A
+measured error spectrum would replace both.
 
 Propagation, to first order at the fit's end: the error e shifts the estimates by
 `dv = -J^+ (r(record + e) - r(record))` (J and r in the fitted coordinates, with the fit's
@@ -54,8 +55,9 @@ after the fit has absorbed what it can; the mean of its squared norm over the dr
 residual sum of squares the records' error should leave at a fit in the right minimum (to first
 order). `monitor` reports the fit's residual sum of squares over it plus the sensors' noise
 (`FitSummary.misfit_ratio`): 0.74-1.19 over 19 detection cases with 8 s runs, 9.6 and 55.8 at
-two wrong minima. One realisation of a short record's error varies more: 0.17 on the demo's
-0.5 s runs.
+two wrong minima (draws of the record's spectrum). One realisation of a short record's error
+varies more: 0.17 on the demo's 0.5 s runs; over the 100 detection cases with 1 s runs, 0.21-1.28
+(median 0.63) with draws of the record's spectrum, 0.53-1.64 (median 0.87) with the synthesis's.
 """
 
 import dataclasses
