@@ -43,7 +43,7 @@ same variance by `refit_steps` Gauss-Newton steps from the fit's estimate, and t
 refits' shifts is the bias at the record's own error level (bias linear in the error variance:
 2 sigma^2 - sigma^2 = sigma^2), subtracted from the estimates. A single step is linear in the
 shift, while the bias is of second order: where the shift is large the step misses part of it
-(measured with draws of the record's own spectrum: on the demo's 0.5 s runs the worn damper's
+(measured with draws of the record's own spectrum: on the demo's 1 s runs the worn damper's
 bias was +0.8 % after one step, -2.1 % after two, -3.1 % after three; on 8 s runs, 4 cases,
 the second step moved every bias by at most 0.1 standard errors, the third by 0.01). The mean
 of `draws` shifts adds `1 / draws` of the term's variance to a corrected estimate's. `monitor`
