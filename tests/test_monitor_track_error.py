@@ -6,6 +6,8 @@ known attenuation of a regression on a noisy input. `monitor` with the term on r
 tests/test_monitor.py (through the demo, which shares that module's compiled programs).
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -47,8 +49,6 @@ def test_errors_of_a_synthetic_record_are_new_realisations_of_its_synthesis():
     seed (its spectrum, band and fades: zero at both ends), scaled to the RMS per channel; the
     errors of one generator differ from each other and from the record; a record without a
     synthetic reference, or of another length, gets the record with random phases."""
-    import dataclasses
-
     reference = TrackReference(spectrum="erri-low", seed=3, length=120.0)
     track = reference.build()
     values = np.asarray(track.values)

@@ -30,6 +30,7 @@ from ..measure import Measurement, layout_description
 from ..params import BogieParams, ModelOptions, get_parameter, set_parameters
 from ..track import TrackIrregularity, TrackReference
 from ._checks import as_measurements
+from ._track_error import synthesis_error
 
 
 ERROR_SEED_OFFSET = 1000
@@ -68,11 +69,9 @@ def recorded_track(
     true = reference.build()
     values = np.asarray(true.values, dtype=float)
     if noise > 0:
-        other = dataclasses.replace(reference, seed=reference.seed + ERROR_SEED_OFFSET).build()
-        error = np.asarray(other.values, dtype=float)
-        rms = np.sqrt(np.mean(error**2, axis=0))
-        target = np.array([noise, noise, noise / (2 * semi_distance)])
-        values = values + error * (target / rms)
+        values = values + synthesis_error(
+            reference, reference.seed + ERROR_SEED_OFFSET, noise, semi_distance
+        )
     return TrackIrregularity(
         float(np.asarray(true.s0)) - offset, float(np.asarray(true.ds)), values
     )

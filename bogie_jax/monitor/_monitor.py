@@ -611,7 +611,7 @@ def _verdicts(
                 ),
                 track_record_bias_by_step=(  # after each refit step: the refit's convergence
                     [float(b) for b in track_effect.bias_by_step[:, j]]
-                    if track_effect is not None and track_effect.bias_by_step is not None
+                    if track_effect is not None
                     else []
                 ),
             )

@@ -68,29 +68,43 @@ import numpy as np
 from ..track import SPECTRA, TrackIrregularity
 
 
+def scaled_error(error, rms: float, semi_distance: float) -> np.ndarray:
+    """`error` `(n, 3)` scaled per channel to RMS `rms` [m] in alignment and vertical level and
+    `rms / (2 semi_distance)` [rad] in cross level; a channel without power stays zero."""
+    error = np.asarray(error, dtype=float)
+    now = np.sqrt(np.mean(error**2, axis=0))
+    target = np.array([rms, rms, rms / (2.0 * semi_distance)])
+    return error * np.where(now > 0, target / np.where(now > 0, now, 1.0), 0.0)
+
+
+def synthesis_error(reference, seed: int, rms: float, semi_distance: float) -> np.ndarray:
+    """A synthetic record's error `(n, 3)`: the synthesis of `reference` (a synthetic
+    `TrackReference`: its spectrum, band and fades) with `seed`, scaled (`scaled_error`)."""
+    other = dataclasses.replace(reference, seed=seed).build()
+    return scaled_error(other.values, rms, semi_distance)
+
+
 def record_error(values, rms: float, semi_distance: float, rng, reference=None) -> np.ndarray:
     """One realisation `(n, 3)` of a record's error (module docstring) for the record
     `values` `(n, 3)` (alignment [m], vertical [m], cross level [rad]); `rng`: a numpy
     `Generator`. Where `reference` is a synthetic `TrackReference` whose track has the record's
-    n samples: its synthesis with a seed drawn from `rng` (`integers(0, 2**31 - 1)`);
+    n samples: `synthesis_error` with a seed drawn from `rng` (`integers(0, 2**31 - 1)`);
     otherwise the record with random Fourier phases. A channel without power gets no error."""
     v = np.asarray(values, dtype=float)
     n = v.shape[0]
-    error = None
     if reference is not None and reference.file is None and reference.spectrum in SPECTRA:
         seed = int(rng.integers(0, 2**31 - 1))
-        error = np.asarray(dataclasses.replace(reference, seed=seed).build().values, dtype=float)
-        error = error if error.shape == v.shape else None
-    if error is None:
-        spectrum = np.abs(np.fft.rfft(v - v.mean(axis=0), axis=0))
-        phases = rng.uniform(0.0, 2.0 * np.pi, spectrum.shape)
-        phases[0] = 0.0  # the mean (zero) stays real
-        if n % 2 == 0:
-            phases[-1] = 0.0  # so does the Nyquist term
-        error = np.fft.irfft(spectrum * np.exp(1j * phases), n=n, axis=0)
-    now = np.sqrt(np.mean(error**2, axis=0))
-    target = np.array([rms, rms, rms / (2.0 * semi_distance)])
-    return error * np.where(now > 0, target / np.where(now > 0, now, 1.0), 0.0)
+        error = synthesis_error(reference, seed, rms, semi_distance)
+        if error.shape == v.shape:
+            return error
+    spectrum = np.abs(np.fft.rfft(v - v.mean(axis=0), axis=0))
+    phases = rng.uniform(0.0, 2.0 * np.pi, spectrum.shape)
+    phases[0] = 0.0  # the mean (zero) stays real
+    if n % 2 == 0:
+        phases[-1] = 0.0  # so does the Nyquist term
+    return scaled_error(
+        np.fft.irfft(spectrum * np.exp(1j * phases), n=n, axis=0), rms, semi_distance
+    )
 
 
 REFIT_STEPS = 2  # Gauss-Newton steps of each draw's refit (module docstring)
@@ -102,9 +116,9 @@ class TrackErrorEffect(NamedTuple):
     covariance: np.ndarray  # (n, n): of the estimates' shift by the records' error
     bias: np.ndarray  # (n,): the estimates' bias from it (SIMEX), to subtract
     draws: int  # realisations used (a failed solve's left out)
-    misfit_ss: float = float("nan")  # mean |(I - J J^+) dr|^2: the residual SS it leaves
-    bias_by_step: np.ndarray | None = None  # (steps, n): the bias after each refit step
-    refit_draws: int = 0  # realisations whose every refit step solved (the bias's mean)
+    misfit_ss: float  # mean |(I - J J^+) dr|^2: the residual SS it leaves
+    bias_by_step: np.ndarray  # (steps, n): the bias after each refit step
+    refit_draws: int  # realisations whose every refit step solved (the bias's mean)
 
 
 def track_error_effect(
@@ -158,10 +172,10 @@ def track_error_effect(
         if len(path) == refit_steps:
             refit.append(path)
     n = j0.shape[1]
-    if not first:
-        return TrackErrorEffect(np.full((n, n), np.nan), np.full(n, np.nan), 0)
-    s = np.array(first)
     by_step = np.mean(refit, axis=0) if refit else np.full((refit_steps, n), np.nan)
+    if not first:
+        return TrackErrorEffect(np.full((n, n), np.nan), by_step[-1], 0, np.nan, by_step, 0)
+    s = np.array(first)
     return TrackErrorEffect(
         s.T @ s / len(first), by_step[-1], len(first), float(np.mean(misfit)), by_step,
         len(refit),
