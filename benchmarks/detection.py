@@ -51,7 +51,9 @@ the coverage of its 95 % interval, and the mean absolute error its standard erro
 sqrt(2 / pi) times the mean relative standard error (E|e| of a normal error e with that
 deviation; the Gauss-Newton standard error is the Cramer-Rao bound of an unbiased estimate
 from these data and this track record), in all and of its residual term alone (without the
-track record's error). Rates carry Wilson 95 % intervals.
+track record's error); the same per group, and for the groups whose members' true values are
+equal apart from those whose members differ (a common factor then has no single true value:
+the members' mean is a convention). Rates carry Wilson 95 % intervals.
 
 Run (from the repository root):
     python benchmarks/detection.py --workers 16               # 100 cases, items 4 (a)-(c)
@@ -422,13 +424,17 @@ def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
 
 def judged(rec: dict):
     """(verdict, relative estimate, relative truth, covered) per judged verdict of a record
-    (finite standard error); a group's truth and nominal are its members' means."""
+    (finite standard error); a group's truth and nominal are its members' means, and the
+    verdict gets `equal`: whether its members' true values are equal (a group's common factor
+    has one true value only then; otherwise the fit weighs the members by their effect on the
+    data, not equally)."""
     for v in rec["verdicts"]:
         if v["std_error"] is None or v["estimate"] is None:
             continue
-        true = float(np.mean([rec["truth"][m] for m in v["members"]]))
-        nom = _nominal(rec, v)
+        truths = [rec["truth"][m] for m in v["members"]]
+        true, nom = float(np.mean(truths)), _nominal(rec, v)
         lo, hi = v["ci95"]
+        v = {**v, "equal": bool(np.ptp(truths) <= 1e-9 * abs(true))}
         yield v, v["estimate"] / nom - 1, true / nom - 1, bool(lo <= true <= hi)
 
 
@@ -520,18 +526,21 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
                 f" {_pct(sum(cover), len(cover))} | {time_s:.0f} |"
             )
     elem_rows = []
-    for name in (*DEFAULT_CANDIDATES, "alone", "group"):
-        per = [
-            (r, v, e, t, c)
-            for r in ok
-            for v, e, t, c in judged(r)
-            if (name == "alone" and v["identifiable"] == "alone")
-            or (name == "group" and v["identifiable"] != "alone")
-            or (v["name"] == name and v["identifiable"] == "alone")
-        ]
+    group_names = sorted({v["name"] for r in ok for v, *_ in judged(r) if len(v["members"]) > 1})
+    selections = {
+        **{n: lambda v, n=n: v["name"] == n and v["identifiable"] == "alone"
+           for n in DEFAULT_CANDIDATES},
+        "all elements (alone)": lambda v: v["identifiable"] == "alone",
+        "groups (all)": lambda v: v["identifiable"] != "alone",
+        **{f"{n} (group)": lambda v, n=n: v["name"] == n for n in group_names},
+        "groups, members equal in truth": lambda v: v["identifiable"] != "alone" and v["equal"],
+        "groups, members differ in truth": lambda v: v["identifiable"] != "alone"
+        and not v["equal"],
+    }  # fmt: skip
+    for label, chosen in selections.items():
+        per = [(r, v, e, t, c) for r in ok for v, e, t, c in judged(r) if chosen(v)]
         if not per:
             continue
-        label = {"alone": "all elements (alone)", "group": "groups (all)"}.get(name, name)
         err = [abs(e - t) for _, _, e, t, _ in per]
         cov = sum(c for *_, c in per)
         implied = np.mean([implied_mae(r, v) for r, v, *_ in per], axis=0)
@@ -607,10 +616,7 @@ def targets(summary: dict) -> list[str]:
     healthy = summary["by_type"].get("healthy")
     alarms = sum(t["alarms"] for n, t in summary["by_type"].items() if n != "healthy")
     correct = sum(t["correct_element"] for n, t in summary["by_type"].items() if n != "healthy")
-    alone = {
-        k: v for k, v in summary["by_element"].items() if k not in ("all elements (alone)",
-                                                                    "groups (all)")
-    }  # fmt: skip
+    alone = {k: v for k, v in summary["by_element"].items() if k in DEFAULT_CANDIDATES}
     allv = summary["by_element"].get("all elements (alone)")
     cover = [v["covered"] / v["judged"] for v in alone.values()]
 
