@@ -526,7 +526,9 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
                 f" {_pct(sum(cover), len(cover))} | {time_s:.0f} |"
             )
     elem_rows = []
-    group_names = sorted({v["name"] for r in ok for v, *_ in judged(r) if len(v["members"]) > 1})
+    group_names = sorted(
+        {v["name"] for r in ok for v, *_ in judged(r) if v["identifiable"] != "alone"}
+    )
     selections = {
         **{n: lambda v, n=n: v["name"] == n and v["identifiable"] == "alone"
            for n in DEFAULT_CANDIDATES},
