@@ -46,14 +46,17 @@ element degraded or failed), the correct-element rate among detected cases (an a
 changed element or on a group holding one), wrong-element alarms, the absolute error of the
 estimated relative change of the changed element; the false-alarm rate on healthy bogies; per
 element the mean absolute error of the estimated relative change (estimate / nominal - 1
-against truth / nominal - 1; a group: its members' mean) where it is identifiable alone, and
+against truth / nominal - 1; a group: the weighted mean of its members' true values relative
+to nominal, with the weights its verdict reports, `member_weights`, what its estimate measures
+(`bogie_jax.monitor._elements.group_weights`; records made before the weights were reported:
+equal weights, the members' mean) where it is identifiable alone, and
 the coverage of its 95 % interval, and the mean absolute error its standard errors imply:
 sqrt(2 / pi) times the mean relative standard error (E|e| of a normal error e with that
 deviation; the Gauss-Newton standard error is the Cramer-Rao bound of an unbiased estimate
 from these data and this track record), in all and of its residual term alone (without the
 track record's error); the same per group, and for the groups whose members' true values are
-equal apart from those whose members differ (a common factor then has no single true value:
-the members' mean is a convention). Rates carry Wilson 95 % intervals.
+equal apart from those whose members differ (where the weights matter). Rates carry Wilson
+95 % intervals.
 
 Run (from the repository root):
     python benchmarks/detection.py --workers 16               # 100 cases, items 4 (a)-(c)
@@ -272,6 +275,7 @@ def run_case(cfg: dict, index: int) -> dict:
             "ci95_dof": v.evidence.get("ci95_dof"),
             "healthy_band": list(v.band.healthy),
             "members": list(v.evidence.get("members") or [v.name]),
+            "member_weights": v.evidence.get("member_weights"),
             "identifiable": v.evidence.get("identifiable", ""),
             "tests": v.evidence.get("tests", []),
             "std_error_gauss_newton": v.evidence.get("std_error_gauss_newton"),
@@ -424,15 +428,17 @@ def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
 
 def judged(rec: dict):
     """(verdict, relative estimate, relative truth, covered) per judged verdict of a record
-    (finite standard error); a group's truth and nominal are its members' means, and the
-    verdict gets `equal`: whether its members' true values are equal (a group's common factor
-    has one true value only then; otherwise the fit weighs the members by their effect on the
-    data, not equally)."""
+    (finite standard error); a group's nominal is its members' mean and its truth that times
+    the weighted mean of the members' true values relative to nominal (its `member_weights`,
+    else equal weights), and the verdict gets `equal`: whether its members' true values are
+    equal (the weights matter only where they are not)."""
     for v in rec["verdicts"]:
         if v["std_error"] is None or v["estimate"] is None:
             continue
         truths = [rec["truth"][m] for m in v["members"]]
-        true, nom = float(np.mean(truths)), _nominal(rec, v)
+        weights = v.get("member_weights") or {m: 1 / len(v["members"]) for m in v["members"]}
+        nom = _nominal(rec, v)
+        true = nom * sum(weights[m] * rec["truth"][m] / rec["nominal"][m] for m in v["members"])
         lo, hi = v["ci95"]
         v = {**v, "equal": bool(np.ptp(truths) <= 1e-9 * abs(true))}
         yield v, v["estimate"] / nom - 1, true / nom - 1, bool(lo <= true <= hi)

@@ -22,6 +22,8 @@ the sensors' nominal noise), computed by `bogie_jax.cost.covariance_from_jacobia
    the group is the sum of its members' columns). With the alone elements and the groups free,
    a group that passes the same two tests is **identifiable as a group**; its verdict names the
    group, e.g. `yaw_dampers.c` (all members) or `primary.{1R,2L}.ky` (some members).
+   A group's estimate measures a weighted mean of its members, which the verdict reports
+   (`group_weights`).
 3. Everything else is **not identifiable**: held at its nominal value in the fit.
 """
 
@@ -229,3 +231,29 @@ def classify_elements(
         for i, n in enumerate(names)
     ]
     return coords, statuses
+
+
+def group_weights(member_columns, other_columns) -> np.ndarray:
+    """The weights v (summing to 1) of a group's members in its fitted common factor phi.
+
+    With members' columns M = dr/d ln p_i (m, n_g) and the other fitted coordinates' columns O
+    (m, k), both in the fit's weights, a linear model r = M theta + O beta fitted with the
+    members tied (one column M 1) gives, by Frisch-Waugh-Lovell,
+
+        phi = v^T theta,    v = S 1 / (1^T S 1),    S = M_perp^T M_perp,
+
+    M_perp the members' columns with O projected out. To first order the group's estimate
+    p_0 e^phi is thus the weighted mean of its members' values relative to nominal,
+    sum_i v_i p_i / p_i0 (where the members are equal, that value). A spring's or damper's
+    force is linear in its coefficient, and the mean of the values, not of their logarithms, is
+    what a large change in one member follows (8 s detection benchmark, one of the two
+    secondary lateral dampers failed at 0.1: the group estimated at 0.51-0.58 in 7 cases, the
+    mean of values 0.55, of logarithms 0.32). The weights follow the members' share in the
+    data: in the detection benchmark's runs each primary lateral spring of axle 2 weighs
+    about three times one of axle 1; equal members of a symmetric group weigh equally."""
+    m = np.asarray(member_columns, dtype=float)
+    o = np.asarray(other_columns, dtype=float)
+    if o.size:
+        m = m - o @ np.linalg.lstsq(o, m, rcond=None)[0]
+    share = m.T @ m.sum(axis=1)
+    return share / share.sum()

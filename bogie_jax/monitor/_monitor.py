@@ -78,6 +78,7 @@ from ._elements import (
     RESOLUTION,
     check_candidates,
     classify_elements,
+    group_weights,
     nominal_values,
 )
 from ._horizon import HORIZON_START, check_horizon_start, horizon_stages, window_rows
@@ -394,6 +395,17 @@ def monitor(
                 )
     timings["fit_s"] = time.perf_counter() - t0
 
+    # what each group's estimate measures: its members' weights (`_elements.group_weights`),
+    # from their columns at the estimate (one more evaluation) in the fit's rows and weights
+    member_weights = {}
+    if fit is not None and fit.status != "failed" and any(len(c.members) > 1 for c in coords):
+        _, jac_x = evaluate(nuis().matrix(a) @ fit.phi)
+        columns = project(jac_x[:, : len(names)]) * rows[:, None]
+        for j, c in enumerate(coords):
+            if len(c.members) > 1:
+                v = group_weights(columns[:, list(c.members)], np.delete(fit.jac, j, axis=1))
+                member_weights[j] = {names[i]: float(w_i) for i, w_i in zip(c.members, v)}
+
     # 7. covariance and verdicts (profile tests where an element may lie outside its band)
     kind = covariance or ("gauss-newton" if track_error > 0 else "sandwich")
     used = layout()
@@ -433,7 +445,7 @@ def monitor(
     verdicts, summary, se_extra = _verdicts(
         coords, statuses, fit, fits, bands, used, n_bias, noise, kind, bandwidth,
         false_alarm_rate, active, n_runs, s2_channels, remove_bias, reweights,
-        layout_x, x_hat, params, extra_names, profile_at, track_effect, estimate,
+        layout_x, x_hat, params, extra_names, profile_at, track_effect, estimate, member_weights,
     )  # fmt: skip
     timings["verdicts_s"] = time.perf_counter() - t0
     draws_used = 0 if track_effect is None else track_effect.draws
@@ -528,13 +540,14 @@ def _covariance(jac, r, layout, n_nuisance, sigma2, kind, bandwidth, values):
 def _verdicts(
     coords, statuses, fit, fits, bands, layout, n_bias, noise, kind, bandwidth, alpha, active,
     n_runs, s2_channels, remove_bias, reweights, layout_x, x_hat, params, extra_names,
-    profile_at, track_effect, estimate,
+    profile_at, track_effect, estimate, member_weights,
 ):  # fmt: skip
     """Verdicts, the `FitSummary` and the standard errors of the fitted nuisance coordinates
     (parameters' values, offsets [m], speed factors); `profile_at(index, phi_limit, sigma2,
     variance_ratio) -> ProfilePoint`: the profile test of a fitted coordinate; `track_effect`:
     the track records' error in the fitted coordinates (`TrackErrorEffect`), or `None`;
-    `estimate`: `_corrected`'s coordinates and mask (`None` without a fit). A profile test of
+    `estimate`: `_corrected`'s coordinates and mask (`None` without a fit); `member_weights`:
+    per group coordinate index, its members' weights (`_elements.group_weights`). A profile test of
     an estimate at a limit holds the fitted coordinate at the limit plus the removed bias."""
     used = f"{int(active.sum())} of {n_runs} runs"
     se_extra = np.zeros(0)
@@ -615,6 +628,8 @@ def _verdicts(
                     else []
                 ),
             )
+            if j in member_weights:
+                v.evidence["member_weights"] = member_weights[j]
             if not active.all():
                 v.evidence["note"] = f"judged on {used}: see the runs left out"
             verdicts.append(v)
