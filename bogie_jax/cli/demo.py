@@ -135,12 +135,18 @@ def _truth(scenario, params) -> dict:
 def truth_check(result, scenario, params) -> str:
     """One line comparing the verdicts with the hidden truth of the synthetic data: correct
     alarms, false alarms, missed damage (the true value outside the healthy band), and how
-    many 95 % intervals hold the true value (a group's truth: its members' mean)."""
+    many 95 % intervals hold the true value (a group's truth: the weighted mean of its
+    members relative to nominal, with the weights its verdict reports, times its nominal)."""
     truth = scenario.true_params(params)
     correct, false, missed, covered, judged = [], [], [], 0, 0
     for v in result.verdicts:
         members = v.evidence.get("members") or [v.name]
-        value = float(np.mean([float(np.asarray(get_parameter(truth, m))) for m in members]))
+        weights = v.evidence.get("member_weights") or {m: 1 / len(members) for m in members}
+        value = float(np.mean([float(np.asarray(get_parameter(params, m))) for m in members]))
+        value *= sum(
+            w * float(np.asarray(get_parameter(truth, m) / get_parameter(params, m)))
+            for m, w in weights.items()
+        )
         lo, hi = v.band.healthy
         damaged = not lo <= value <= hi
         alarm = v.verdict in ("degraded", "failed")

@@ -124,7 +124,8 @@ class MonitorResult:
     """Result of `monitor`.
 
     - `verdicts`: one `Verdict` per judged element or group (groups name their members in
-      `evidence["members"]`), then one per candidate that is not identifiable;
+      `evidence["members"]` and their weights in the estimate in `evidence["member_weights"]`),
+      then one per candidate that is not identifiable;
     - `elements`: the identifiability of every candidate (`ElementStatus`);
     - `fit`: `FitSummary`; `runs`: `RunStatus` per measurement; `false_alarm_rate`;
     - `timings` [s]: `first_jacobian_s` (compile and first evaluation of the residual-Jacobian
@@ -176,6 +177,11 @@ class MonitorResult:
             rows.append(f"{v.name:28s} {label:17s} {est:>12s} {ci:>27s} {v.band.unit}")
         if self.watches:
             rows.append(WATCH_NOTE)
+        for v in self.verdicts:  # what a group's estimate measures (`group_weights`)
+            weights = v.evidence.get("member_weights")
+            if weights:
+                mean = " + ".join(f"{w:.2f} {m}" for m, w in weights.items())
+                rows.append(f"{v.name} measures {mean} (each relative to nominal)")
         for name, p in self.fit.nuisance.items():
             rows.append(
                 f"fitted, not judged: {name} = {p['estimate']:.5g} +- {p['std_error']:.2g} "
