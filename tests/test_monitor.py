@@ -39,6 +39,7 @@ from bogie_jax.monitor import (
     as_defect_scenario,
     classify_elements,
     decision_z,
+    group_weights,
     levenberg_marquardt,
     monitor,
     recorded_track,
@@ -195,6 +196,51 @@ def test_identifiability_rule_on_constructed_jacobians(nominal):
     assert not math.isfinite(by_name["yaw_dampers.left.c"].relative_std_error)
 
 
+def test_a_group_is_split_where_the_runs_separate_its_parts(nominal):
+    """The four primary lateral springs built by hand: the springs of one wheelset enter only
+    through their sum (left and right not separable), the two wheelsets' sums are orthogonal
+    and well measured. The verdicts name one group per wheelset, not the four together."""
+    names = tuple(f"primary.{a}.ky" for a in ("1L", "1R", "2L", "2R"))
+    bands = {
+        n: ToleranceBand.relative(float(get_parameter(nominal, n)), 0.2, unit="N/m") for n in names
+    }
+    e = np.eye(40)
+    jac = np.stack([50 * e[0], 50 * e[0], 80 * e[1], 80 * e[1]], axis=1)
+    z = decision_z(0.05, len(names))
+    coords, statuses = classify_elements(nominal, names, jac, bands, None, z)
+    assert {c.name: c.members for c in coords} == {
+        "primary.{1L,1R}.ky": (0, 1),
+        "primary.{2L,2R}.ky": (2, 3),
+    }
+    assert [s.coordinate for s in statuses] == ["primary.{1L,1R}.ky"] * 2 + [
+        "primary.{2L,2R}.ky"
+    ] * 2
+    # one wheelset's sum seen only together with the other's: the whole group, not split
+    tied = np.stack([50 * e[0], 50 * e[0], 80 * e[0], 80 * e[0]], axis=1) + 0.1 * e[:, 2:6]
+    coords, _ = classify_elements(nominal, names, tied, bands, None, z)
+    assert [c.name for c in coords] == ["primary.ky"]
+
+
+def test_group_weights_are_what_a_tied_fit_estimates():
+    """A linear model r = M theta + O beta with unequal members: the least-squares fit with the
+    members tied (one column M 1, O free) estimates exactly v^T theta; equal members of a
+    mirror-symmetric group weigh equally."""
+    rng = np.random.default_rng(3)
+    members = rng.normal(size=(60, 4)) * np.array([1.0, 1.0, 3.0, 3.0])
+    others = rng.normal(size=(60, 3)) + 0.5 * members[:, :3]  # correlated with the members
+    theta, beta = np.array([0.26, 0.0, 0.0, -0.1]), np.array([0.1, -0.2, 0.05])
+    data = members @ theta + others @ beta
+    tied = np.column_stack([members.sum(axis=1), others])
+    phi = np.linalg.lstsq(tied, data, rcond=None)[0][0]
+    v = group_weights(members, others)
+    assert v.sum() == pytest.approx(1.0)
+    assert phi == pytest.approx(v @ theta, rel=1e-10)
+    assert v[2:].min() > v[:2].max()  # the members with larger columns weigh more
+    half = rng.normal(size=(30, 1))
+    mirror = np.block([[half, -half], [half, half]])  # two members, mirror images
+    assert group_weights(mirror, np.zeros((60, 0))) == pytest.approx([0.5, 0.5])
+
+
 # ------------------------------------------------------------------------------------------
 # host Levenberg-Marquardt (numpy problems with known minima)
 # ------------------------------------------------------------------------------------------
@@ -324,6 +370,13 @@ def test_monitor_finds_the_left_yaw_damper_at_50_percent(yaw_left_50):
         assert right.estimate == pytest.approx(400e3, rel=1e-2)
     else:  # only the pair: the verdict names the group
         assert left.name == "yaw_dampers.c"
+    groups = [v for v in result.verdicts if v.evidence.get("identifiable") == "as a group"]
+    assert groups  # these short runs tie some members
+    for v in groups:  # a group reports what its estimate measures
+        weights = v.evidence["member_weights"]
+        assert list(weights) == v.evidence["members"]
+        assert sum(weights.values()) == pytest.approx(1.0)
+        assert f"{v.name} measures" in result.table()
     _non_alarms_are_healthy(result, skip=(left.name,))
     assert [v.name for v in result.alarms] == [left.name]
     assert result.fit.status == "converged"
