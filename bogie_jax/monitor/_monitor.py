@@ -45,7 +45,9 @@ Steps (each documented where it is done):
    judged coordinates (Bonferroni); the judged block of the covariance of all fitted
    coordinates (nuisance included), so the intervals carry the nuisance's uncertainty; an
    element estimated outside its band is tested there by the profile likelihood ratio
-   (`_profile.py`: the fit repeated with the element held at the band's edge).
+   (`_profile.py`: the fit repeated with the element held at the band's edge); a group's
+   verdict gives its members' weights in its estimate (`_elements.group_weights`, from one more
+   evaluation at the estimate).
 
 Steps 3, 6 and 7 are numpy on the residuals and Jacobian the compiled program returns (step 7
 also evaluates it with other track records): nothing more is compiled.
