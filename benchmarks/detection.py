@@ -102,6 +102,7 @@ from bogie_jax.measure import default_sensor_layout, synthetic_measurement
 from bogie_jax.monitor import (
     DEFAULT_CANDIDATES,
     DEFECT_SCENARIOS,
+    group_value,
     interval_outside,
     monitor,
     nonlinear_options,
@@ -436,9 +437,8 @@ def judged(rec: dict):
         if v["std_error"] is None or v["estimate"] is None:
             continue
         truths = [rec["truth"][m] for m in v["members"]]
-        weights = v.get("member_weights") or {m: 1 / len(v["members"]) for m in v["members"]}
         nom = _nominal(rec, v)
-        true = nom * sum(weights[m] * rec["truth"][m] / rec["nominal"][m] for m in v["members"])
+        true = group_value(v["members"], rec["truth"], rec["nominal"], v.get("member_weights"))
         lo, hi = v["ci95"]
         v = {**v, "equal": bool(np.ptp(truths) <= 1e-9 * abs(true))}
         yield v, v["estimate"] / nom - 1, true / nom - 1, bool(lo <= true <= hi)

@@ -39,6 +39,7 @@ from bogie_jax.monitor import (
     as_defect_scenario,
     classify_elements,
     decision_z,
+    group_value,
     group_weights,
     levenberg_marquardt,
     monitor,
@@ -239,6 +240,11 @@ def test_group_weights_are_what_a_tied_fit_estimates():
     half = rng.normal(size=(30, 1))
     mirror = np.block([[half, -half], [half, half]])  # two members, mirror images
     assert group_weights(mirror, np.zeros((60, 0))) == pytest.approx([0.5, 0.5])
+    # what such a pair measures with one damper failed to 10 %: the mean of the values
+    pair, nominal = ("left", "right"), {"left": 32e3, "right": 32e3}
+    failed = {"left": 3.2e3, "right": 32e3}
+    assert group_value(pair, failed, nominal, {"left": 0.5, "right": 0.5}) == pytest.approx(17.6e3)
+    assert group_value(pair, failed, nominal, {"left": 0.2, "right": 0.8}) == pytest.approx(26.24e3)
 
 
 # ------------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import check_date, save_measurement, save_track_csv
-from ..monitor import RunSpec, monitor, recorded_track, scenario_measurements
+from ..monitor import RunSpec, group_value, monitor, recorded_track, scenario_measurements
 from ..params import get_parameter, manchester_benchmark
 from ._common import UsageError, split_names
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
@@ -141,12 +141,10 @@ def truth_check(result, scenario, params) -> str:
     correct, false, missed, covered, judged = [], [], [], 0, 0
     for v in result.verdicts:
         members = v.evidence.get("members") or [v.name]
-        weights = v.evidence.get("member_weights") or {m: 1 / len(members) for m in members}
-        value = float(np.mean([float(np.asarray(get_parameter(params, m))) for m in members]))
-        value *= sum(
-            w * float(np.asarray(get_parameter(truth, m) / get_parameter(params, m)))
-            for m, w in weights.items()
+        true_values, nominals = (
+            {m: float(np.asarray(get_parameter(p, m))) for m in members} for p in (truth, params)
         )
+        value = group_value(members, true_values, nominals, v.evidence.get("member_weights"))
         lo, hi = v.band.healthy
         damaged = not lo <= value <= hi
         alarm = v.verdict in ("degraded", "failed")

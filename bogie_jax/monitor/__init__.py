@@ -20,6 +20,7 @@ from ._elements import (
     Coordinate as Coordinate,
     ElementStatus as ElementStatus,
     classify_elements as classify_elements,
+    group_value as group_value,
     group_weights as group_weights,
 )
 from ._horizon import (

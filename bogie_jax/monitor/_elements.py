@@ -301,3 +301,15 @@ def group_weights(member_columns, other_columns) -> np.ndarray:
         m = m - o @ np.linalg.lstsq(o, m, rcond=None)[0]
     share = m.T @ m.sum(axis=1)
     return share / share.sum()
+
+
+def group_value(
+    members, values: Mapping, nominals: Mapping, weights: Mapping | None = None
+) -> float:
+    """What a group's estimate measures when its members have `values` (mappings by member
+    name, in their unit): the members' mean nominal times the weighted mean of their values
+    relative to nominal, sum_i v_i p_i / p_i0, with a verdict's `member_weights` (default equal
+    weights: the members' mean); `group_weights` says why."""
+    weights = weights or {m: 1 / len(members) for m in members}
+    p0 = float(np.mean([nominals[m] for m in members]))
+    return p0 * sum(weights[m] * values[m] / nominals[m] for m in members)
