@@ -15,7 +15,7 @@ import pytest
 
 from bogie_jax.cli import main
 from bogie_jax.io import read_verdicts, write_report, write_verdicts
-from bogie_jax.monitor import ToleranceBand, decision_z, judge
+from bogie_jax.monitor import ToleranceBand, decision_z, judge, same_measure
 from bogie_jax.params import manchester_benchmark
 
 
@@ -138,6 +138,44 @@ def test_history_refuses_a_zero_width_band(tmp_path, capsys):
     (tmp_path / "run2" / "verdicts.json").write_text(json.dumps(record))
     assert _exit_code(["monitor", "--history", *dirs]) == 2
     assert "zero width" in capsys.readouterr().err
+
+
+def test_history_trends_a_group_only_where_it_weighs_its_members_alike(tmp_path, capsys):
+    """A group's estimate measures its members' weighted mean (`member_weights`): the trend
+    leaves out the results that weighed them otherwise than the latest one, and says so."""
+    dates = ("2026-01-05", "2026-02-05", "2026-03-08", "2026-04-08")
+    values = (30e3, 29e3, 27.5e3, 26.6e3)  # N s/m
+    weights = ((0.2, 0.8), (0.5, 0.5), (0.53, 0.47), (0.5, 0.5))  # left, right
+    band = ToleranceBand.relative(32e3, 0.2, unit="N s/m")
+    dirs = []
+    for k, date in enumerate(dates):
+        body = _record(dict(zip(NAMES, (400e3, 1.22e6))), dict.fromkeys(NAMES, 5e3))
+        row = judge("secondary.cy", values[k], 400.0, band, z=decision_z(0.05, 3)).to_dict()
+        row["evidence"]["member_weights"] = {
+            f"secondary.{side}.cy": w for side, w in zip(("left", "right"), weights[k])
+        }
+        body["verdicts"].append(row)
+        write_verdicts(tmp_path / f"run{k}", body, date=date)
+        dirs.append(str(tmp_path / f"run{k}"))
+    out = tmp_path / "trend"
+    assert main(["monitor", "--history", *dirs, "--out", str(out)]) == 0
+    trends = {t["name"]: t for t in json.loads((out / "trends.json").read_text())["trends"]}
+    cy = trends["secondary.cy"]
+    # oracle: equal standard errors, so the ordinary least-squares slope of the last three
+    days = np.array([31.0, 62.0, 93.0])
+    assert cy["slope_per_day"] == pytest.approx(np.polyfit(days, values[1:], 1)[0], rel=1e-9)
+    assert len(cy["dates"]) == 3 and cy["left_out"] == ["2026-01-05"]
+    assert trends["yaw_dampers.left.c"]["left_out"] == []
+    assert len(trends["primary.1L.kz"]["dates"]) == 4
+    note = "secondary.cy: left out 2026-01-05"
+    assert note in capsys.readouterr().out and note in (out / "trends.md").read_text()
+
+
+def test_same_measure_compares_members_and_their_weights():
+    half = {"a": 0.5, "b": 0.5}
+    assert same_measure(half, {"a": 0.54, "b": 0.46}) and same_measure(None, None)
+    assert not same_measure(half, {"a": 0.56, "b": 0.44})
+    assert not same_measure(half, {"a": 0.5, "c": 0.5}) and not same_measure(half, None)
 
 
 # --- bad input at the command line -------------------------------------------------------------

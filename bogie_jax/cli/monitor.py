@@ -25,7 +25,7 @@ from ..io import (
     write_trend_report,
     write_trends,
 )
-from ..monitor import ToleranceBand, monitor, trend
+from ..monitor import ToleranceBand, monitor, same_measure, trend
 from ._common import UsageError, text_table
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup
@@ -188,8 +188,10 @@ def _candidates(record) -> tuple[str, ...]:
 
 def history_trends(records, false_alarm_rate):
     """Per verdict name, the `trend` over the records that estimate it (in the given order:
-    the library refuses unsorted or duplicate dates). Returns `(trends, skipped)`, `trends`
-    a list of `(Trend, unit, band)`, `skipped` the names with fewer than two estimates.
+    the library refuses unsorted or duplicate dates) and, for a group, weigh its members as the
+    latest of them does (`same_measure`). Returns `(trends, skipped, left_out)`: `trends` a
+    list of `(Trend, unit, band, dates left out)`, `skipped` the names with fewer than two
+    such estimates, `left_out` one note per name whose other estimates were left out.
 
     **Raises:** `ValueError` for mixed layouts (other candidate elements or units) and what
     `trend` and `ToleranceBand` raise."""
@@ -207,7 +209,7 @@ def history_trends(records, false_alarm_rate):
                 order.append(row["name"])
                 series[row["name"]] = []
             series[row["name"]].append((r["date"], row))
-    trends, skipped = [], []
+    trends, skipped, left_out = [], [], []
     for name in order:
         rows = series[name]
         units = {row["unit"] for _, row in rows}
@@ -216,6 +218,14 @@ def history_trends(records, false_alarm_rate):
         known = [
             (d, row) for d, row in rows if row["estimate"] is not None and row.get("std_error")
         ]
+        reference = _weights(known[-1][1]) if known else None
+        other = [d for d, row in known if not same_measure(_weights(row), reference)]
+        known = [(d, row) for d, row in known if same_measure(_weights(row), reference)]
+        if other:
+            left_out.append(
+                f"{name}: left out {', '.join(other)}: there its estimate weighed the members "
+                "otherwise than in the latest result (`member_weights`)"
+            )
         if len(known) < 2:
             skipped.append(name)
             continue
@@ -232,8 +242,12 @@ def history_trends(records, false_alarm_rate):
             false_alarm_rate=false_alarm_rate,
             band=band,
         )
-        trends.append((t, units.pop(), band))
-    return trends, skipped
+        trends.append((t, units.pop(), band, other))
+    return trends, skipped, left_out
+
+
+def _weights(row):
+    return (row.get("evidence") or {}).get("member_weights")
 
 
 def _trend_figure(path, trends):
@@ -247,7 +261,7 @@ def _trend_figure(path, trends):
     fig, axes = plt.subplots(
         rows, cols, figsize=(6.0 * cols, 2.9 * rows + 0.4), squeeze=False, layout="constrained"
     )
-    for ax, (t, unit, band) in zip(axes.flat, trends):
+    for ax, (t, unit, band, _) in zip(axes.flat, trends):
         plot_trend(t, band=band, unit=unit, ax=ax)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
@@ -258,7 +272,7 @@ def _trend_figure(path, trends):
 def run_history(args, progress) -> int:
     try:
         records = [read_verdicts(p) for p in args.history]
-        trends, skipped = history_trends(records, args.false_alarm_rate)
+        trends, skipped, left_out = history_trends(records, args.false_alarm_rate)
     except ValueError as e:  # unreadable, unsorted or duplicate dates, mixed layouts, bad band
         raise UsageError(str(e)) from None
     if not trends:
@@ -270,7 +284,7 @@ def run_history(args, progress) -> int:
         ("element", "runs", "level", "slope [unit/day]", "se(slope)", "drift", "p",
          "days to band edge", "unit"),
     ]  # fmt: skip
-    for t, unit, _ in trends:
+    for t, unit, _, _ in trends:
         rows.append(
             (
                 t.name, len(t.dates), f"{t.level:.4g}", f"{t.slope:+.3g}",
@@ -283,14 +297,17 @@ def run_history(args, progress) -> int:
         f"trends over {len(records)} results ({records[0]['date']} to {records[-1]['date']})"
     )
     progress.say(text_table(rows))
+    notes = list(left_out)
     if skipped:
-        progress.say(f"no trend (fewer than two estimates): {', '.join(skipped)}")
+        notes.append(f"no trend (fewer than two comparable estimates): {', '.join(skipped)}")
+    for note in notes:
+        progress.say(note)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     _trend_figure(out / "trends.png", trends)
     items = [
-        dict(t.to_dict(), unit=unit, times_days=[float(x) for x in t.times])
-        for t, unit, _ in trends
+        dict(t.to_dict(), unit=unit, times_days=[float(x) for x in t.times], left_out=other)
+        for t, unit, _, other in trends
     ]
     paths = [
         write_trends(out / "trends.json", items, false_alarm_rate=args.false_alarm_rate,
@@ -299,7 +316,7 @@ def run_history(args, progress) -> int:
         write_trend_report(
             out / "trends.md", items, sources=[(r["date"], r["path"]) for r in records],
             figure="trends.png",
-            notes=[f"no trend (fewer than two estimates): {', '.join(skipped)}"] if skipped else (),
+            notes=notes,
         ),
     ]  # fmt: skip
     progress.say("wrote " + ", ".join(str(p) for p in paths))

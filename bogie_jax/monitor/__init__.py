@@ -17,11 +17,13 @@ from ._elements import (
     DEFAULT_TOLERANCE as DEFAULT_TOLERANCE,
     MAX_CORRELATION as MAX_CORRELATION,
     RESOLUTION as RESOLUTION,
+    WEIGHT_TOLERANCE as WEIGHT_TOLERANCE,
     Coordinate as Coordinate,
     ElementStatus as ElementStatus,
     classify_elements as classify_elements,
     group_value as group_value,
     group_weights as group_weights,
+    same_measure as same_measure,
 )
 from ._horizon import (
     HORIZON_START as HORIZON_START,
