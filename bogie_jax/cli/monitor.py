@@ -219,8 +219,9 @@ def history_trends(records, false_alarm_rate):
             (d, row) for d, row in rows if row["estimate"] is not None and row.get("std_error")
         ]
         reference = _weights(known[-1][1]) if known else None
-        other = [d for d, row in known if not same_measure(_weights(row), reference)]
-        known = [(d, row) for d, row in known if same_measure(_weights(row), reference)]
+        alike = [same_measure(_weights(row), reference) for _, row in known]
+        other = [d for (d, _), same in zip(known, alike) if not same]
+        known = [item for item, same in zip(known, alike) if same]
         if other:
             left_out.append(
                 f"{name}: left out {', '.join(other)}: there its estimate weighed the members "
