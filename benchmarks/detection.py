@@ -369,6 +369,31 @@ def _worker(job):
     return rec
 
 
+def _pin_worker(free_cores) -> None:
+    """Pool initializer: pin this worker process to the core it takes from `free_cores`.
+
+    With one XLA thread per worker, unpinned workers still migrate across the cores and
+    contend with each other; on a 2-core machine they ran 1.6-2x slower than two processes
+    pinned with `taskset` (benchmarks/README.md, the 8 s split runs). `None` leaves it free.
+    """
+    core = free_cores.get()
+    if core is not None:
+        os.sched_setaffinity(0, {core})
+
+
+def _worker_pool(workers: int):
+    """A spawn pool of `workers` processes, each pinned to a core of its own where the
+    cores this process may use suffice (Linux); otherwise left to the scheduler."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_setaffinity") else []
+    free_cores = ctx.Queue()
+    for k in range(workers):
+        free_cores.put(cores[k] if workers <= len(cores) else None)
+    return ctx.Pool(workers, initializer=_pin_worker, initargs=(free_cores,))
+
+
 def run_cases(args, cfg) -> None:
     done = load_records(args.out, cfg)
     i, n = args.shard
@@ -404,12 +429,10 @@ def run_cases(args, cfg) -> None:
             for count, job in enumerate(jobs, start=1):
                 save(_worker(job), count)
         else:
-            import multiprocessing as mp
-
-            # one XLA thread per worker process: the workers fill the cores
+            # one XLA thread per worker process, one core per worker: the workers fill the cores
             flags = os.environ.get("XLA_FLAGS", "")
             os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
-            with mp.get_context("spawn").Pool(args.workers, maxtasksperchild=None) as pool:
+            with _worker_pool(args.workers) as pool:
                 for count, rec in enumerate(pool.imap_unordered(_worker, jobs), start=1):
                     save(rec, count)
 
