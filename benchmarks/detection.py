@@ -374,9 +374,15 @@ def _pin_worker(free_cores) -> None:
 
     With one XLA thread per worker, unpinned workers still migrate across the cores and
     contend with each other; on a 2-core machine they ran 1.6-2x slower than two processes
-    pinned with `taskset` (benchmarks/README.md, the 8 s split runs). `None` leaves it free.
+    pinned with `taskset` (benchmarks/README.md, the 8 s split runs). `None`, or no core left
+    (a worker the pool started in place of one that died), leaves it free.
     """
-    core = free_cores.get()
+    import queue
+
+    try:
+        core = free_cores.get(timeout=5.0)
+    except queue.Empty:
+        return
     if core is not None:
         os.sched_setaffinity(0, {core})
 
