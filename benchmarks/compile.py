@@ -142,8 +142,8 @@ def build_multistart(scenario):
     """The sharded batch `BatchedFits` compiles ahead of time, captured at its runner's
     `BatchRunner.compile(batch)` as `BatchRunner.program(batch)` (older checkouts: at their
     `ahead_of_time(jitted)` call): the runner's own inputs, already placed on the devices."""
-    import bogie_jax.batch
-    import bogie_jax.queued_batch
+    import bogie_jax.runtime.batch
+    import bogie_jax.runtime.queued_batch
     from bogie_jax.identify import LatinHypercube
 
     objective, _ = scenario_objective(scenario)
@@ -164,9 +164,9 @@ def build_multistart(scenario):
         captured.append(runner.program(batch))
         raise Captured
 
-    if hasattr(bogie_jax.batch, "BatchRunner"):
-        bogie_jax.batch.BatchRunner.compile = capture_compile
-    for module in (bogie_jax.batch, bogie_jax.queued_batch):
+    if hasattr(bogie_jax.runtime.batch, "BatchRunner"):
+        bogie_jax.runtime.batch.BatchRunner.compile = capture_compile
+    for module in (bogie_jax.runtime.batch, bogie_jax.runtime.queued_batch):
         if hasattr(module, "ahead_of_time"):
             module.ahead_of_time = capture
     selection = objective.selection

@@ -6,7 +6,7 @@
    equations (`tests/reference/bogie_twin.py`), median of >= 5 runs, step and RHS-evaluation
    counts, and each method's error against a tight JAX reference (rtol 1e-10).
 2. A batch of 64 solves (parameter sets with the primary lateral stiffness and the yaw damper
-   varied +-20 %) through `bogie_jax.batch.batch_runner`: on one device, sharded over the 2 CPU
+   varied +-20 %) through `runtime.batch.batch_runner`: on one device, sharded over the 2 CPU
    cores, against a Python loop of single jitted solves. Throughputs as ratios from one run.
 
 Run: `python benchmarks/forward.py` (writes results/forward.json and results/forward.md).
@@ -33,8 +33,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import bogie_jax as bj
-from bogie_jax.batch import batch_runner
 from bogie_jax.params import get_parameter
+from bogie_jax.runtime.batch import batch_runner
 from bogie_jax.simulation import simulate
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 

@@ -43,12 +43,14 @@ jax.config.update("jax_enable_x64", True)
 
 from bogie_jax import manchester_benchmark  # noqa: E402
 from bogie_jax.cost import make_objective  # noqa: E402
-from bogie_jax.gradcheck import gradient_report, median_time, report_table  # noqa: E402
-from bogie_jax.gradients import (  # noqa: E402
+from bogie_jax.gradients import (  # noqa: E402  # noqa: E402
     METHODS,
     compiled_residuals,
+    gradient_report,
     jacobian_by_mode,
+    median_time,
     reference_gradient,
+    report_table,
 )
 from bogie_jax.measure import Measurement, synthetic_measurement  # noqa: E402
 from bogie_jax.params import parameter_names  # noqa: E402

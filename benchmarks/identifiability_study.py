@@ -48,9 +48,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _common import write_outputs  # noqa: E402
 
 import bogie_jax as bj  # noqa: E402
-from bogie_jax.batch import batch_runner  # noqa: E402
 from bogie_jax.cost import synthetic_objective  # noqa: E402
 from bogie_jax.identify import as_problem  # noqa: E402
+from bogie_jax.runtime.batch import batch_runner  # noqa: E402
 from bogie_jax.sensitivity import (  # noqa: E402
     fisher_from_jacobian,
     physical_jacobian,  # noqa: E402

@@ -36,7 +36,7 @@ _EXPORTS = {  # what a notebook needs, by module
         "simulated_annealing",
     ),
     "sensitivity": ("fisher_information", "profile_likelihood", "sensitivity_sobol"),
-    "compilation_cache": ("use_compilation_cache",),
+    "runtime.compilation_cache": ("use_compilation_cache",),
     "monitor": (
         "DEFECT_SCENARIOS",
         "DefectScenario",

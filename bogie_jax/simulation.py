@@ -10,14 +10,14 @@ import numpy as np
 import optimistix as optx
 
 from ._precision import warn_if_float32
-from ._solve_settings import (
+from ._validation import check_positive_int, check_range
+from .model import N_DOF, accelerations, build_model, static_equilibrium_solve, vector_field
+from .params import BogieParams, ModelOptions
+from .runtime.solve_settings import (
     SolveSettings as SolveSettings,
     default_controller as default_controller,
     resolve_settings,
 )
-from ._validation import check_positive_int, check_range
-from .model import N_DOF, accelerations, build_model, static_equilibrium_solve, vector_field
-from .params import BogieParams, ModelOptions
 from .track import TrackIrregularity
 
 

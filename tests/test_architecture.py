@@ -25,19 +25,14 @@ LAYERS = {
     "_householder": 0,  # a least-squares / square linear solver in plain XLA operations
     "params": 0,
     "qmc": 0,  # quasi-Monte Carlo points (multistart designs, Sobol' indices)
+    "runtime": 0,  # solve settings, batch runners, program store, compilation cache
     "contact": 1,
     "track": 1,
     "model": 2,
     "simulation": 3,
-    "_solve_settings": 3,
     "measure": 4,
     "cost": 5,
-    "program_store": 5,  # batch programs kept across processes (`jax.export`)
-    "compilation_cache": 5,  # turns on JAX's persistent cache and the program store beside it
-    "batch": 5,  # generic batch runners under the identification layer
-    "queued_batch": 5,
     "gradients": 6,
-    "gradcheck": 6,
     "identify": 6,
     "sensitivity": 6,
     "monitor": 7,

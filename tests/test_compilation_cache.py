@@ -21,7 +21,7 @@ if sys.argv[1] == "preset":  # a caller (a test session) set its own cache first
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 7.0)
 directory = bj.use_compilation_cache(None if sys.argv[1] != "explicit" else sys.argv[2])
 jax.block_until_ready(jax.jit(lambda x: jax.numpy.sin(x) @ x.T)(jax.numpy.ones((3, 3))))
-from bogie_jax.program_store import program_store_directory
+from bogie_jax.runtime.program_store import program_store_directory
 
 print(json.dumps({
     "directory": str(directory),

@@ -11,8 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import bogie_jax.program_store as store
-from bogie_jax.queued_batch import IterativeMember, queued_runner
+import bogie_jax.runtime.program_store as store
+from bogie_jax.runtime.queued_batch import IterativeMember, queued_runner
 
 
 ARGS = jnp.asarray([4.0, 1e12, 2.0, 1e-6, 9.0, 3.0e7, 0.5, 1e3])

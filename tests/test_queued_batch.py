@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from bogie_jax.batch import BatchRunner
-from bogie_jax.queued_batch import IterativeMember, queued_runner
+from bogie_jax.runtime.batch import BatchRunner
+from bogie_jax.runtime.queued_batch import IterativeMember, queued_runner
 
 
 MAX_STEPS = 60

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import bogie_jax as bj
-from bogie_jax.batch import batch_runner
+from bogie_jax.runtime.batch import batch_runner
 from bogie_jax.simulation import simulate
 from bogie_jax.track import ERRIB176Spectrum, synthesise_track
 

@@ -14,7 +14,7 @@
   and equinox's runtime checks (`error_if`, diffrax's `throw`) are host callbacks in its default
   `raise` mode; with `nan` a failed check gives NaN instead, which the commands report (failed
   starts, an unsuccessful solve). Without it the solves, fits and statistics are never cached.
-- With it, the traced batch programs (multistart fits, `bogie_jax.program_store`) in
+- With it, the traced batch programs (multistart fits, `bogie_jax.runtime.program_store`) in
   `programs/` of the cache directory, so that a second identical run also skips JAX's tracing.
 
 The library itself changes no global configuration; only `bogie_jax.cli.main` calls this.
@@ -78,11 +78,11 @@ def prepare(*, use_cache: bool) -> Setup:
     jax.config.update("jax_enable_x64", True)
     directory = None
     if use_cache:
-        from ..compilation_cache import use_compilation_cache
+        from ..runtime.compilation_cache import use_compilation_cache
 
         directory = use_compilation_cache()  # a cache the caller set (a test session's) wins
     else:
-        from ..program_store import use_program_store
+        from ..runtime.program_store import use_program_store
 
         jax.config.update("jax_enable_compilation_cache", False)
         use_program_store(None)

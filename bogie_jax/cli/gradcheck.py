@@ -7,8 +7,7 @@ import diffrax as dfx
 import jax.random as jr
 
 from ..cost import select_parameters, synthetic_objective
-from ..gradcheck import gradient_report, report_table
-from ..gradients import METHODS, reference_gradient
+from ..gradients import METHODS, gradient_report, reference_gradient, report_table
 from ..params import parameter_names
 from ..plot import plot_gradient_components
 from ._common import UsageError, require_suffix, split_names

@@ -25,8 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool
 
-from .._solve_settings import resolve_settings
 from ..params import BogieParams, ModelOptions
+from ..runtime.solve_settings import resolve_settings
 from ..simulation import SolveSettings
 from ._make import make_objective
 from ._objective import Objective, ResidualModel

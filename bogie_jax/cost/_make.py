@@ -4,11 +4,11 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .._solve_settings import resolve_settings
 from ..measure import Measurement, MeasurementError
 from ..measure._layout import check_sensor_names
 from ..measure._measurement import check_channels_in_layout
 from ..params import BogieParams, ModelOptions
+from ..runtime.solve_settings import resolve_settings
 from ..simulation import SolveSettings, check_window, sample_times
 from ..track import TrackIrregularity
 from ._lead_in import window_lead_in

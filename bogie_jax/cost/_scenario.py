@@ -3,9 +3,9 @@
 import jax.numpy as jnp
 import numpy as np
 
-from .._solve_settings import SOLVE_OPTIONS, resolve_settings
 from ..measure import synthetic_measurement
 from ..params import BogieParams, ModelOptions
+from ..runtime.solve_settings import SOLVE_OPTIONS, resolve_settings
 from ..simulation import SolveSettings
 from ..track import TrackIrregularity, TrackReference
 from ._make import make_objective

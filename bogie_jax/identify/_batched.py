@@ -8,7 +8,7 @@ in a small LRU cache (`RUNNER_CACHE_SIZE` entries) keyed by equality (not `repr`
 objective's static structure, the method, `max_steps`, the devices, the lanes and an optional
 annealing schedule; a key that cannot be hashed is not cached. Members and failure flags are
 as in `fit_multistart`; LM, Gauss-Newton and Dogleg fits run as a queue (`lanes` in flight per
-device, see `bogie_jax.queued_batch`) unless `lanes=None`.
+device, see `bogie_jax.runtime.queued_batch`) unless `lanes=None`.
 """
 
 import collections
@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..batch import batch_runner
+from ..runtime.batch import batch_runner
 from ._annealing import anneal_theta
 from ._iteration import queue_lanes, queued_fits, supports_queue
 from ._local import as_method
@@ -50,7 +50,7 @@ class BatchedFits:
         static = self.static
         lanes = queue_lanes(lanes, len(as_problem(objective).transform.lower), devices)
         self.queued = lanes is not None and schedule is None and supports_queue(method_)
-        # what the compiled batch closes over, for the program store (`bogie_jax.batch`)
+        # what the compiled batch closes over, for the program store (`bogie_jax.runtime.batch`)
         identity = ("bogie_jax.identify.BatchedFits", static, method_, max_steps, lanes, schedule)
         if self.queued:
             problem_of = lambda dynamic: as_problem(eqx.combine(dynamic, static))

@@ -18,7 +18,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from ..batch import BatchResult
+from ..runtime.batch import BatchResult
 from ._batched import batched_fits
 from ._iteration import default_chunk
 from ._local import LocalOutput

@@ -1,7 +1,7 @@
 """Least-squares fits step by step, for queued multistart batches.
 
 `optx.least_squares` runs a whole fit inside one `while_loop`. A queued batch
-(`bogie_jax.queued_batch`) needs the same fit as `init`/`step`/`done`/`output`, so that a lane can
+(`runtime.queued_batch`) needs the same fit as `init`/`step`/`done`/`output`, so that a lane can
 start the next start when its fit ends. This follows optimistix's own iteration (`solver.init`,
 `solver.step`, `solver.terminate` on the previous iterate, a non-finite iterate ends the fit, the
 step limit gives `nonlinear_max_steps_reached`; the status is carried as an `optimistix.RESULTS`
@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import optimistix as optx
 
 from .._householder import HouseholderQR
-from ..queued_batch import IterativeMember, queued_runner
+from ..runtime.queued_batch import IterativeMember, queued_runner
 from ._jacobian import JacobianResiduals
 from ._local import LeastSquaresMethod, LocalOutput
 from ._problem import is_successful, problem_residuals
@@ -112,7 +112,7 @@ def queue_lanes(lanes, n_params: int, devices=None) -> int | None:
     On a CPU device (one core) vmapping fits buys no parallelism: a vmapped fit evaluates both
     sides of its branches and steps every lane's ODE solve until the slowest lane's ends, and
     JAX batches the differentiated solve when it traces the program. One lane is stepped
-    without `vmap` (`bogie_jax.queued_batch`). Measured on 2 CPU devices, the same fits with one
+    without `vmap` (`runtime.queued_batch`). Measured on 2 CPU devices, the same fits with one
     lane against `ceil(32 / (n + 1))` (`benchmarks/results/lanes.md`): 3 parameters, 8 starts
     in chunks of 4: 9.2 s against 10.3 s; 32 starts: 39.2 s against 66.7 s; 10 parameters, 16
     starts: 132 s against 139 s; the 3-parameter batch traces in 6.2 s instead of 8.9 s. On a
@@ -159,7 +159,7 @@ def supports_queue(method) -> bool:
 
 def queued_fits(method, problem_of, max_steps: int, *, lanes: int, devices=None):
     """`run((thetas, data)) -> BatchResult` of `(LocalOutput, cost)`: least-squares fits as a
-    queue with `lanes` fits in flight per device (`bogie_jax.queued_batch`), each with its cost
+    queue with `lanes` fits in flight per device (`runtime.queued_batch`), each with its cost
     and residual Jacobian (`LocalOutput.jacobian`) at its end taken from the solver's state
     (`least_squares_member`: no evaluation after the fits), unsuccessful statuses flagged as
     failed (and, as every batch output, non-finite ones: a start whose cost or Jacobian is not

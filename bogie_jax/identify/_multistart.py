@@ -1,9 +1,9 @@
 """Multistart: space-filling starts inside the bounds, all local fits as one sharded batch.
 
-LM, Gauss-Newton and Dogleg fits run as a queue by default (`bogie_jax.queued_batch`: a few fits
+LM, Gauss-Newton and Dogleg fits run as a queue by default (`runtime.queued_batch`: a few fits
 in flight per device, vmapped where a device holds several, see `queue_lanes`; a lane whose fit
 has ended takes the next start), so no device waits for its slowest fit; `lanes=None`, and the
-other methods, run every start at once in lock-step through `bogie_jax.batch.batch_runner` (in
+other methods, run every start at once in lock-step through `runtime.batch.batch_runner` (in
 chunks). Both spread the starts over the devices and run optimistix's own iteration, so they
 agree up to rounding (vmaps of different widths can round differently; `benchmarks/README.md`
 compares their speed). A failed start (non-finite output or unsuccessful solver status) is
@@ -20,8 +20,8 @@ import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
-from ..batch import batch_runner
 from ..qmc import sobol_sequence
+from ..runtime.batch import batch_runner
 from ._iteration import queue_lanes, queued_fits, supports_queue
 from ._local import FitResult, as_method, fit_statistics, statistics
 from ._problem import (

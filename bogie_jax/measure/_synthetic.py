@@ -6,9 +6,9 @@ import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
-from .._solve_settings import resolve_settings
 from ..model import BogieModel, accelerations, build_model
 from ..params import BogieParams, ModelOptions
+from ..runtime.solve_settings import resolve_settings
 from ..simulation import (
     SolveSettings,
     Trajectory,

@@ -1,7 +1,7 @@
 """Sensitivity analysis: factor screening and variance-based (Sobol') indices.
 
 Generic core (`screening_*`, `sobol_*`): a pure scalar function of a parameter vector and the
-box bounds of the parameters; model evaluations go through `bogie_jax.batch.batch_runner`.
+box bounds of the parameters; model evaluations go through `bogie_jax.runtime.batch.batch_runner`.
 Objective adapters (`sensitivity_*`): the same on `bogie_jax.cost.Objective`.
 Identifiability (`fisher_information`, `profile_likelihood`): Fisher information, collinearity
 indices and profile likelihood of an `Objective` or any least-squares problem.

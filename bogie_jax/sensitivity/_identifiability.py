@@ -30,9 +30,9 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float
 
-from ..batch import batch_runner
 from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
 from ..identify import LeastSquaresMethod, LeastSquaresProblem, as_problem, is_successful
+from ..runtime.batch import batch_runner
 
 
 CHI2_1_95 = 3.841458820694124  # chi2 quantile, 1 degree of freedom, 0.95
@@ -416,7 +416,7 @@ def profile_likelihood(
     (`lower`, `upper` physical `(n,)`, default the transform's; a log-scale parameter without
     finite bounds uses [estimate / 2, 2 estimate]) and re-fits the others with
     Levenberg-Marquardt (`rtol`, `atol`, `max_steps`), warm-started at the estimate. All
-    `len(params) * n_points` fits run as one batch (`bogie_jax.batch.batch_runner`).
+    `len(params) * n_points` fits run as one batch (`bogie_jax.runtime.batch.batch_runner`).
 
     **Raises:** `ValueError` for an unknown parameter, bounds with lower >= upper or an estimate
     outside them, or `n_points < 3`, before any fit.

@@ -1,7 +1,7 @@
 """Factor screening (paper section 4.2, figure 4): one-parameter sweeps and two-parameter grids.
 
 All other parameters stay at `nominal`; the points of a screening form one batch evaluated by
-`bogie_jax.batch.batch_runner`.
+`bogie_jax.runtime.batch.batch_runner`.
 """
 
 from collections.abc import Callable, Sequence

@@ -3,7 +3,7 @@
 Estimators are strategy objects (`Saltelli2010`, `Jansen`) acting on the model outputs
 `f_a = f(A)`, `f_b = f(B)`, `f_ab[:, i] = f(AB_i)`; confidence intervals come from a
 bootstrap over the `n` base rows with an explicit `key`. Model evaluations go through
-`bogie_jax.batch.batch_runner` (vmapped in chunks, sharded over devices).
+`bogie_jax.runtime.batch.batch_runner` (vmapped in chunks, sharded over devices).
 """
 
 import abc
@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import jax.random as jr
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
-from ..batch import batch_runner
+from ..runtime.batch import batch_runner
 from ._sampling import saltelli_sample
 from ._validation import (
     check_bounds,

@@ -12,8 +12,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .cost import Objective
-from .gradients import (
+from ..cost import Objective
+from ._methods import (
     METHODS,
     compiled_jacobian,
     compiled_residuals,

@@ -31,7 +31,7 @@ def default_cache_dir(environ=os.environ) -> Path:
 
 def use_compilation_cache(directory: str | os.PathLike | None = None) -> Path:
     """Turn on JAX's persistent compilation cache for this process, and the store of traced
-    batch programs (`bogie_jax.program_store`) in its `programs/` folder, so that a second
+    batch programs (`bogie_jax.runtime.program_store`) in its `programs/` folder, so that a second
     identical run skips tracing and XLA's compile. `directory`: None keeps the cache this process
     already set, with its settings (a test session's), else takes `default_cache_dir()`.
     Returns the directory."""

@@ -84,7 +84,7 @@ def per_device(fn: Callable, devices, spec: PartitionSpec):
 
 class BatchRunner:
     """A compiled batch: `run(batch) -> BatchResult` (what `batch_runner` and
-    `bogie_jax.queued_batch.queued_runner` return).
+    `bogie_jax.runtime.queued_batch.queued_runner` return).
 
     - `run(batch)`: run the batch (compiled on the first call for its signature: structure,
       shapes and dtypes of the batch's leaves).
@@ -96,7 +96,7 @@ class BatchRunner:
     The programs are kept by JAX's own caches of the jitted function (trace, lowering,
     compilation), not here: a call after `compile` runs the program compiled ahead. With an
     `identity` (a picklable description of everything the program closes over) and the program
-    store on (`bogie_jax.program_store`), the traced program is also kept across processes.
+    store on (`bogie_jax.runtime.program_store`), the traced program is also kept across processes.
     """
 
     def __init__(self, jitted: Callable, prepare: Callable, finish: Callable, identity=None):

@@ -112,7 +112,7 @@ def queued_runner(
     post: Callable | None = None,
     failure_fn: Callable | None = None,
 ) -> BatchRunner:
-    """Compile an iterative `member` into a `bogie_jax.batch.BatchRunner`:
+    """Compile an iterative `member` into a `bogie_jax.runtime.batch.BatchRunner`:
     `run(batch) -> BatchResult` (as `batch_runner`).
 
     **Arguments:**

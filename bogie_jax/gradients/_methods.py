@@ -30,8 +30,8 @@ import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
-from ._solve_settings import full_checkpoints as full_checkpoints, traced_tolerances
-from .cost import Objective, residual_jacobian
+from ..cost import Objective, residual_jacobian
+from ..runtime.solve_settings import full_checkpoints, traced_tolerances
 
 
 class _Method(NamedTuple):

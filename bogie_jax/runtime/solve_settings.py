@@ -13,7 +13,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from ._validation import check_positive_int
+from .._validation import check_positive_int
 
 
 _Controller = dfx.AbstractStepSizeController
