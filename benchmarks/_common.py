@@ -1,5 +1,6 @@
 """Shared helpers of the benchmark scripts: timing, environment record, output files."""
 
+import datetime
 import json
 import platform
 import re
@@ -14,8 +15,13 @@ import numpy as np
 RESULTS = Path(__file__).parent / "results"
 
 
+def today() -> str:
+    """The date in UTC, `YYYY-MM-DD`: the date a result is written with."""
+    return datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d")
+
+
 def environment() -> dict:
-    """Device, versions and commit, recorded with every benchmark."""
+    """Device, versions, commit and date, recorded with every benchmark."""
     try:
         commit = subprocess.run(
             ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
@@ -28,6 +34,7 @@ def environment() -> dict:
         "platform": platform.platform(),
         "jax": jax.__version__,
         "commit": commit,
+        "date": today(),
     }
 
 
@@ -41,15 +48,34 @@ def median_time(fn, repeats: int = 5) -> tuple[float, list[float]]:
     return float(np.median(times)), times
 
 
+def result_path(name: str, suffix: str) -> Path:
+    """`results/BENCHMARK/WHAT.SUFFIX` for `name` = `"BENCHMARK/WHAT"` (its folder created):
+    one folder per benchmark, each file named after what it measures."""
+    benchmark, _, what = name.partition("/")
+    if not benchmark or not what or "/" in what:
+        raise ValueError(f"result name {name!r}: give 'benchmark/what_it_measures'")
+    folder = RESULTS / benchmark
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder / f"{what}{suffix}"
+
+
+def stamp(env: dict) -> str:
+    """The markdown line that says where a result comes from: commit, date, device."""
+    device = env.get("device", "")
+    return f"Measured at commit {env.get('commit') or '?'}, {env.get('date') or '?'}, {device}."
+
+
 def write_outputs(
     name: str, records, markdown: str, extra: dict | None = None, env: dict | None = None
 ) -> None:
-    """Write `results/NAME.json` (records + environment) and `results/NAME.md`. `env`: the
-    environment the records were measured in (default: this process's)."""
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    payload = {"environment": env or environment(), "records": records, **(extra or {})}
-    (RESULTS / f"{name}.json").write_text(json.dumps(payload, indent=2))
-    (RESULTS / f"{name}.md").write_text(markdown)
+    """Write `results/BENCHMARK/WHAT.json` (records + environment, commit and date included)
+    and `results/BENCHMARK/WHAT.md` (ending in `stamp`), `name` = `"BENCHMARK/WHAT"`.
+    `env`: the environment the records were measured in (default: this process's)."""
+    env = {"date": today(), **(env or environment())}
+    payload = {"environment": env, "records": records, **(extra or {})}
+    result_path(name, ".json").write_text(json.dumps(payload, indent=2))
+    markdown = markdown.rstrip("\n") + "\n\n" + stamp(env) + "\n"
+    result_path(name, ".md").write_text(markdown)
     print(markdown)
 
 

@@ -17,7 +17,7 @@ linear solve, ODE solver, optimiser loop, ...). Small parts are also compiled on
     python benchmarks/compile.py --label x --no-run        # trace, lower and compile only
     python benchmarks/compile.py --compare before,now
 
-Writes `results/compile_LABEL.json` and `.md` (`results/compile_A_vs_B.md` for `--compare`).
+Writes `results/compile/LABEL.json` and `.md` (`results/compile/A_vs_B.md` for `--compare`).
 Times are in seconds unless the column says ms; they grow with the machine's load, which is
 recorded (1-minute load average before and after every program).
 """
@@ -45,7 +45,7 @@ import numpy as np
 
 
 HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
+RESULTS = HERE / "results" / "compile"
 N_STARTS = 4  # multistart starts, spread over 2 CPU devices
 MULTISTART_MAX_STEPS = 20  # LM steps per start: bounds the run time, not the program
 ANNEAL_PIECE = 20  # proposals per annealing piece
@@ -575,12 +575,10 @@ def markdown(label: str, payload: dict) -> str:
 
 
 def compare(labels: str) -> None:
-    """Merge two labels' results into one before/after table (`results/compile_A_vs_B.md`)."""
+    """Merge two labels' results into one before/after table (`results/compile/A_vs_B.md`)."""
     a, b = labels.split(",")
-    load = lambda lab: {
-        r["program"]: r
-        for r in json.loads((RESULTS / f"compile_{lab}.json").read_text())["records"]
-    }
+    payloads = {lab: json.loads((RESULTS / f"{lab}.json").read_text()) for lab in (a, b)}
+    load = lambda lab: {r["program"]: r for r in payloads[lab]["records"]}
     ra, rb = load(a), load(b)
     value = lambda r, k: r[k] if r is not None and r.get("ok") else None
     ratio = lambda x, y: "-" if not x or y is None else f"{y / x:.2f}"
@@ -598,14 +596,19 @@ def compare(labels: str) -> None:
             digits = 0 if key == "hlo_instructions" else 1
             cells += [fmt(u, scale, digits), fmt(v, scale, digits), ratio(u, v)]
         rows.append(f"| {name} | " + " | ".join(cells) + " |")
-    text = f"# Compile cost: `{a}` against `{b}` (ratio = {b} / {a})\n\n" + "\n".join(rows) + "\n"
-    (RESULTS / f"compile_{a}_vs_{b}.md").write_text(text)
+    where = "; ".join(
+        f"`{lab}`: commit {p['machine']['commit']}, {p['machine']['date']}"
+        for lab, p in payloads.items()
+    )
+    text = f"# Compile cost: `{a}` against `{b}` (ratio = {b} / {a})\n\n{where}.\n\n"
+    text += "\n".join(rows) + "\n"
+    (RESULTS / f"{a}_vs_{b}.md").write_text(text)
     print(text)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--label", default="now")
+    parser.add_argument("--label", default="all_programs")
     parser.add_argument("--programs", default=",".join(PROGRAMS), help="comma-separated names")
     parser.add_argument("--repo", default=None, help="checkout whose bogie_jax is measured")
     parser.add_argument("--timeout", type=float, default=900.0, help="per program [s]")
@@ -623,8 +626,8 @@ def main() -> None:
     if args.compare:
         return compare(args.compare)
     if args.render:
-        payload = json.loads((RESULTS / f"compile_{args.label}.json").read_text())
-        return (RESULTS / f"compile_{args.label}.md").write_text(markdown(args.label, payload))
+        payload = json.loads((RESULTS / f"{args.label}.json").read_text())
+        return (RESULTS / f"{args.label}.md").write_text(markdown(args.label, payload))
     names = [n.strip() for n in args.programs.split(",") if n.strip()]
     unknown = [n for n in names if n not in PROGRAMS]
     if unknown:
@@ -638,8 +641,8 @@ def main() -> None:
         status = f"compile {record['compile_s']:.1f} s" if record["ok"] else "FAILED"
         print(f"    {status}, {record['wall_s']:.0f} s in all", flush=True)
         # written after every program: an interrupted run keeps what it measured
-        (RESULTS / f"compile_{args.label}.json").write_text(json.dumps(payload, indent=2))
-        (RESULTS / f"compile_{args.label}.md").write_text(markdown(args.label, payload))
+        (RESULTS / f"{args.label}.json").write_text(json.dumps(payload, indent=2))
+        (RESULTS / f"{args.label}.md").write_text(markdown(args.label, payload))
     print(markdown(args.label, payload))
 
 

@@ -194,7 +194,11 @@ def main(argv=None):
     p.add_argument("--speeds", default="30,60", help="comma-separated speeds [m/s]")
     p.add_argument("--seed", type=int, default=0, help="track seed")
     p.add_argument("--max-rel-std", type=float, default=0.1, help="identifiability threshold")
-    p.add_argument("--label", default="element_identifiability", help="output file stem")
+    p.add_argument(
+        "--label",
+        default="elements_by_sensor_layout",
+        help="output file stem under results/element_identifiability/",
+    )
     args = p.parse_args(argv)
     params = bj.manchester_benchmark()
     layouts = sensor_layouts(params)
@@ -225,7 +229,7 @@ def main(argv=None):
     timing["device"] = f"{jax.device_count()} x {jax.devices()[0].device_kind}"
     md = markdown(records, args, timing)
     write_outputs(
-        args.label,
+        f"element_identifiability/{args.label}",
         records,
         md,
         extra={"settings": vars(args), "timing": timing, "elements": list(ELEMENTS)},

@@ -108,7 +108,7 @@ def main() -> None:
     lines += ["", f"All chunks: predicted {total_pred:.2f} s, measured {total:.2f} s, "
               f"ratio {total / total_pred:.2f}."]  # fmt: skip
     extra = dict(per_eval_s=per_eval, eval_times_s=eval_times, steps=steps.tolist())
-    write_outputs("fit_time", rows, "\n".join(lines) + "\n", extra=extra)
+    write_outputs("fit_time/fit_vs_steps_x_evaluation", rows, "\n".join(lines) + "\n", extra=extra)
 
 
 if __name__ == "__main__":

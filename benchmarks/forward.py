@@ -9,7 +9,7 @@
    varied +-20 %) through `runtime.batch.batch_runner`: on one device, sharded over the 2 CPU
    cores, against a Python loop of single jitted solves. Throughputs as ratios from one run.
 
-Run: `python benchmarks/forward.py` (writes results/forward.json and results/forward.md).
+Run: `python benchmarks/forward.py` (writes results/forward/jax_vs_scipy_and_batch.{json,md}).
 """
 
 import os
@@ -221,7 +221,7 @@ def main():
             f"{batch['loop'] / batch[label]:.2f} |"
         )
     write_outputs(
-        "forward",
+        "forward/jax_vs_scipy_and_batch",
         records,
         "\n".join(lines) + "\n",
         extra={"batch": batch, "speedup_vs_fastest_scipy": fastest_scipy / jax_time},

@@ -10,8 +10,8 @@ the n = 39 forward-mode gradient at rtol 1e-12, of which each n takes its compon
     python benchmarks/gradients.py                  # about 10-15 min on a 2-core CPU
     python benchmarks/gradients.py --ns 2,5 --duration 0.25 --repeats 3   # smoke run
 
-Writes benchmarks/results/gradients.json (a list of records), gradients.md (tables) and
-gradients.png (gradient components by method at n = 10, and cost against n).
+Writes benchmarks/results/gradients/cost_by_parameter_count.json (a list of records),
+`.md` (tables) and `.png` (gradient components by method at n = 10, and cost against n).
 """
 
 import os
@@ -23,6 +23,7 @@ import os
 os.environ.setdefault("EQX_ON_ERROR", "nan")
 
 import argparse  # noqa: E402
+import datetime  # noqa: E402
 import importlib.metadata  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
@@ -80,7 +81,8 @@ PRIORITY = (
     "geometry.semi_wheelbase",
     "contact.wheel_radius",
 )
-RESULTS = Path(__file__).parent / "results"
+RESULTS = Path(__file__).parent / "results" / "gradients"
+STEM = "cost_by_parameter_count"
 
 
 def _scenario(args):
@@ -180,7 +182,7 @@ def main(argv=None) -> int:
         "--update",
         action="store_true",
         help="re-measure only the given --ns/--methods and replace those records in "
-        "the existing gradients.json (the rest is kept)",
+        "the existing STEM.json (the rest is kept)",
     )
     args = p.parse_args(argv)
     cache = args.cache or tempfile.mkdtemp(prefix="bogie_jax_gradients_cache_")
@@ -234,6 +236,7 @@ def main(argv=None) -> int:
         diffrax=importlib.metadata.version("diffrax"),
         python=platform.python_version(),
         commit=_commit(),
+        date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
         scenario=vars(args),
         n_residuals=full.n_residuals,
         total_s=time.perf_counter() - t_start,
@@ -241,11 +244,11 @@ def main(argv=None) -> int:
     for r in records:
         r["meta"] = meta
     if args.update:
-        records = _merge(json.loads((out / "gradients.json").read_text()), records)
-    (out / "gradients.json").write_text(json.dumps(records, indent=1))
-    (out / "gradients.md").write_text(_markdown(records, meta))
-    _figure(records, out / "gradients.png")
-    print(f"wrote {out}/gradients.json, gradients.md, gradients.png in {meta['total_s']:.0f} s")
+        records = _merge(json.loads((out / f"{STEM}.json").read_text()), records)
+    (out / f"{STEM}.json").write_text(json.dumps(records, indent=1))
+    (out / f"{STEM}.md").write_text(_markdown(records, meta))
+    _figure(records, out / f"{STEM}.png")
+    print(f"wrote {out}/{STEM}.json, .md, .png in {meta['total_s']:.0f} s")
     return 0
 
 
@@ -296,7 +299,7 @@ def _markdown(records, meta) -> str:
         "",
         "Runs (each record keeps its run's settings in the JSON): "
         + "; ".join(
-            f"commit {m['commit']}: "
+            f"commit {m['commit']}, {m.get('date', 'date not recorded')}: "
             f"{', '.join(sorted({r['method'] for r in records if r['meta'] == m}))}"
             f" ({m['total_s']:.0f} s)"
             for m in _distinct(r["meta"] for r in records)

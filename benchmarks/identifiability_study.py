@@ -273,7 +273,7 @@ def main(argv=None):
     timing["device"] = f"{jax.device_count()} x {jax.devices()[0].device_kind}"
     md = markdown(records, args, timing)
     write_outputs(
-        "identifiability",
+        "identifiability_study/parameters_by_sensor_layout",
         records,
         md,
         extra={"settings": vars(args), "timing": timing, "parameters": list(PARAMS)},

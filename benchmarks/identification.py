@@ -27,7 +27,7 @@ The batched fits take the objective as a (broadcast) batch input rather than a c
 compilation serves every trial of a scenario.
 
 Run: `python benchmarks/identification.py [--trials 20] [--duration S] [--scenarios primary3,...]`
-(writes results/identification.json and results/identification.md).
+(writes results/identification/NAME.json and .md; NAME: `--name`, default `every_method`).
 """
 
 import os
@@ -181,8 +181,8 @@ ACCURACIES = (1e-2, 1e-3, 1e-4, 1e-5)
 def run_annealing(problem, theta0, key, truth, noisy, args, cache, tag):
     """One annealing chain of `--sa-iter` proposals, run in pieces of `--sa-piece`: after every
     piece the chain's progress (evaluations, wall time, best cost and error, evaluations to
-    each accuracy so far) is appended to `results/NAME_annealing.jsonl`, so an interrupted long
-    chain keeps what it has measured."""
+    each accuracy so far) is appended to `results/identification/NAME_annealing.jsonl`, so an
+    interrupted long chain keeps what it has measured."""
     import json
 
     sched = SimulatedAnnealing(n_iter=args.sa_iter, step_size=0.5, min_step=args.sa_min_step)
@@ -198,7 +198,8 @@ def run_annealing(problem, theta0, key, truth, noisy, args, cache, tag):
     state = jax.block_until_ready(start(problem, theta0, sched))
     wall = time.perf_counter() - tic
     hits = {f"{tol:g}": None for tol in ACCURACIES}
-    log = RESULTS / f"{args.name}_annealing.jsonl"
+    log = RESULTS / "identification" / f"{args.name}_annealing.jsonl"
+    log.parent.mkdir(parents=True, exist_ok=True)
     while int(state.k) < sched.n_iter:
         done = int(state.k)
         tic = time.perf_counter()
@@ -562,16 +563,18 @@ def main(argv=None):
         action="store_false",
         help="skip the interval-coverage block (--starts noisy trials per scenario)",
     )
-    p.add_argument("--name", default="identification")
+    p.add_argument("--name", default="every_method")
     p.add_argument(
         "--from-json",
         action="store_true",
-        help="solve nothing: rebuild the tables of results/NAME.json from its per-trial records",
+        help="solve nothing: rebuild the tables of results/identification/NAME.json from its "
+        "per-trial records",
     )
     p.add_argument(
         "--merge",
         default=None,
-        help="solve nothing: merge the per-trial records of the runs results/A.json,B.json,... "
+        help="solve nothing: merge the per-trial records of the runs results/identification/"
+        "A.json,B.json,... "
         "(comma-separated names; e.g. methods run separately on the same trials) into NAME",
     )
     args = p.parse_args(argv)
@@ -593,7 +596,7 @@ def main(argv=None):
             dict(scenario=k[0], n_params=k[1], noise=k[2], methods=v) for k, v in results.items()
         ]
         write_outputs(
-            args.name,
+            f"identification/{args.name}",
             records,
             markdown(results, loops, covers, settings),
             extra=dict(
@@ -630,15 +633,17 @@ def main(argv=None):
 
 
 def report_from_json(name, sources=None):
-    """Re-aggregate saved per-trial records into `results/NAME.{json,md}`: those of `NAME`
-    itself (a possibly interrupted run), or merged from the runs `sources`. Trial `t` of a
-    scenario and noise level has the same noise and start design in every run (its key is
-    `1000 t + 7`), so runs of different methods merge into the trials of one table."""
+    """Re-aggregate saved per-trial records into `results/identification/NAME.{json,md}`:
+    those of `NAME` itself (a possibly interrupted run), or merged from the runs `sources`.
+    Trial `t` of a scenario and noise level has the same noise and start design in every run
+    (its key is `1000 t + 7`), so runs of different methods merge into the trials of one
+    table."""
     import json
 
     from benchmarks._common import RESULTS
 
-    runs = [json.loads((RESULTS / f"{src}.json").read_text()) for src in sources or [name]]
+    folder = RESULTS / "identification"
+    runs = [json.loads((folder / f"{src}.json").read_text()) for src in sources or [name]]
     merged = {}
     for src, saved in zip(sources or [name], runs):
         for t in saved["trials"]:
@@ -686,7 +691,9 @@ def report_from_json(name, sources=None):
             loop_vs_batch=[lp for saved in runs for lp in saved.get("loop_vs_batch", [])],
             coverage=covers,
         )
-    write_outputs(name, records, markdown(results, loops, covers, settings), extra=extra)
+    write_outputs(
+        f"identification/{name}", records, markdown(results, loops, covers, settings), extra=extra
+    )
     return 0
 
 

@@ -17,7 +17,7 @@ Run (from the repository root):
     python benchmarks/identify_wall.py --command /path/to/venv/bin/bogie-jax --name user
     python benchmarks/identify_wall.py -- --starts 4      # arguments after -- go to identify
 
-Writes `results/identify_wall[_NAME].json` and `.md`.
+Writes `results/identify_wall/NAME.json` and `.md` (NAME: `--name`, default `cold_and_warm`).
 """
 
 import argparse
@@ -145,7 +145,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rounds", type=int, default=5, help="cold + warm pairs (default 5)")
     p.add_argument("--command", default=None, help="the bogie-jax script (default: see module)")
-    p.add_argument("--name", default="", help="results stem suffix: identify_wall_NAME")
+    p.add_argument(
+        "--name", default="cold_and_warm", help="results stem under results/identify_wall/"
+    )
     opts = p.parse_args(argv)
     if opts.rounds < 1:
         p.error(f"--rounds = {opts.rounds}: give at least 1")
@@ -159,7 +161,7 @@ def main() -> None:
                 records.append({"round": k, "mode": mode, **rec})
                 print(f"round {k} {mode}: {rec['wall_s']:.1f} s wall, exit {rec['returncode']}")
     stats = summary(records)
-    name = "identify_wall" + (f"_{opts.name}" if opts.name else "")
+    name = f"identify_wall/{opts.name}"
     first = next((r["first_line"] for r in records if r["first_line"]), "")  # its devices
     # this process's devices are not the command's: the command's first line says what it ran on
     env = {k: v for k, v in environment().items() if k not in ("device", "n_devices")}

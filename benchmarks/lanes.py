@@ -10,8 +10,8 @@ on both.
 
 Run (from the repository root): `python benchmarks/lanes.py` (about 10 minutes on 2 cores);
 `--cases default:8:4,default:32:32,all10:16:16` (scenario:starts:chunk) and `--name`;
-`--render` rewrites `results/NAME.md` from `results/NAME.json` (a run copied from another
-machine).
+`--render` rewrites `results/lanes/NAME.md` from `results/lanes/NAME.json` (a run copied from
+another machine).
 """
 
 import argparse
@@ -95,14 +95,15 @@ def markdown(records, env) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cases", default="default:8:4,default:32:32,all10:16:16")
-    parser.add_argument("--name", default="lanes")
+    parser.add_argument("--name", default="one_vs_many_lanes_cpu")
     parser.add_argument("--render", action="store_true", help="NAME.md from NAME.json")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.render:
-        payload = json.loads((ROOT / "benchmarks" / "results" / f"{args.name}.json").read_text())
+        folder = ROOT / "benchmarks" / "results" / "lanes"
+        payload = json.loads((folder / f"{args.name}.json").read_text())
         text = markdown(payload["records"], payload["environment"])
-        (ROOT / "benchmarks" / "results" / f"{args.name}.md").write_text(text)
+        (folder / f"{args.name}.md").write_text(text)
         print(text)
         return
     if args.child:
@@ -130,7 +131,7 @@ def main() -> None:
             print(json.dumps(records[-1]), flush=True)
         # written after every case: an interrupted run keeps what it measured
         env = environment()
-        write_outputs(args.name, records, markdown(records, env), env=env)
+        write_outputs(f"lanes/{args.name}", records, markdown(records, env), env=env)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,8 @@ relative error against the truth, final cost, start / nominal) and a summary: wh
 multistart reach the truth and where the others end.
 
 Run (from the repository root):
-`python benchmarks/multistart_loop.py primary6 > benchmarks/results/multistart_loop_primary6.jsonl`
+`python benchmarks/multistart_loop.py primary6 >
+benchmarks/results/multistart_loop/primary6_starts_one_by_one.jsonl`
 """
 
 import json

@@ -221,9 +221,8 @@ def _simulate_compiled(
 ) -> Trajectory:
     """`simulate` after its checks, as one compiled program: called from Python, the solve, the
     static equilibrium and the accelerations would otherwise each be dispatched (and the
-    operations between them compiled) one by one: measured 32 s for the first 0.5 s run
-    instead of 17 s, and 5 s for each further run instead of 0.02 s (2 CPUs). Under an outer
-    `jit` or `vmap` it is inlined."""
+    operations between them compiled) one by one. Under an outer `jit` or `vmap` it is
+    inlined."""
     first = start_position / speed  # [s] model time of sample 0
     # Integrated in the window's own time tau = t - first: the save times are then exact
     # constants (a window starting mid-track has the same step grid as a run from the track

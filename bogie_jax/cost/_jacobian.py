@@ -2,7 +2,7 @@
 
 Forward mode through the solve: one solve carries the `n` tangents of the basis vectors (`vmap`
 of `jax.jvp`), which for a measurement (many residuals, few parameters) is far cheaper than
-reverse mode (one backward pass per residual; timings in `benchmarks/README.md`). An
+reverse mode (one backward pass per residual). An
 `Objective` is switched to `diffrax.ForwardMode()` here, so callers never switch adjoints by
 hand; `bogie_jax.identify.JacobianResiduals` (the residuals the least-squares solvers
 linearise) materialises the same Jacobian.

@@ -7,10 +7,8 @@ with the implicit-function-theorem derivative. Often no fitted parameter can mov
 - a tied vertical stiffness (`primary.kz`: all four axleboxes) scales every spring of its group
   alike, so on a symmetric bogie each still carries its design load at q = 0
   (`spring_preloads`: P_i = design load * kz_i / mean(kz)), and q0 = 0.
-The solve is then wasted, and it is a fifth to a third of the program: for the default
-3-parameter identification (`primary.kz`, `primary.cz`, `yaw_dampers.c`) the sharded LM batch
-traced in 17.9 s and compiled in 46.5 s with it, 12.4 s and 36.5 s without (2 CPUs, fresh
-processes; `benchmarks/results/compile_s20_before_vs_s20_after.md`).
+The solve is then wasted, and it is a fifth to a third of the program (the default
+3-parameter identification, `primary.kz`, `primary.cz`, `yaw_dampers.c`, is such a case).
 
 The test (`bogie_jax.model.rests_at_zero`): q = 0 passes the Newton solve's own convergence
 test at theta = 0 and at `N_PROBES` fixed pseudo-random theta spread over several e-folds of

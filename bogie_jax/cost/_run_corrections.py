@@ -1,5 +1,5 @@
-"""Per-run nuisance corrections of where a run lies on its track record and how fast it ran
-(issue 19, item 4 (a) and (b)), fitted together with the suspension parameters.
+"""Per-run nuisance corrections of where a run lies on its track record and how fast it ran,
+fitted together with the suspension parameters.
 
 A track record is positioned along the track to about 0.5 m, and a run's speed is known to
 about 1 %: fitted with the nominal values, the suspension estimates absorb the mismatch (biased

@@ -44,8 +44,8 @@ def seminorm_backsolve(max_steps: int, controller=None) -> dfx.BacksolveAdjoint:
     only (`diffrax.adjoint_rms_seminorm`; Kidger, Chen & Lyons 2021, "Hey, that's not an ODE").
 
     The parameter adjoints are integrals of the solution and need no step control; with the
-    full norm the backward pass resolved them (39 parameter leaves of very different scales) and
-    took about 440 forward solves' time (`benchmarks/gradients.py`). Tolerances are those of the
+    full norm the backward pass resolves them (39 parameter leaves of very different scales) and
+    costs hundreds of forward solves. Tolerances are those of the
     forward `controller` (a `PIDController`; other controllers are used as they are).
     """
     del max_steps
@@ -202,8 +202,7 @@ def jacobian_by_mode(objective: Objective, theta, *, mode: str | None = None) ->
 
     Default `mode`: forward (`ForwardMode` + one tangent per parameter) when
     n_residuals >= n_params, which is every realistic measurement; reverse (one reverse pass per
-    residual) otherwise. Measured on the default 13-channel layout (1 s at 200 Hz, 2613
-    residuals): forward mode is orders of magnitude faster (see `benchmarks/README.md`).
+    residual) otherwise.
     """
     if mode is None:
         mode = default_jacobian_mode(objective.n_residuals, objective.n_params)

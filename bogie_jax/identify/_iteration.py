@@ -112,11 +112,8 @@ def queue_lanes(lanes, n_params: int, devices=None) -> int | None:
     On a CPU device (one core) vmapping fits buys no parallelism: a vmapped fit evaluates both
     sides of its branches and steps every lane's ODE solve until the slowest lane's ends, and
     JAX batches the differentiated solve when it traces the program. One lane is stepped
-    without `vmap` (`runtime.queued_batch`). Measured on 2 CPU devices, the same fits with one
-    lane against `ceil(32 / (n + 1))` (`benchmarks/results/lanes.md`): 3 parameters, 8 starts
-    in chunks of 4: 9.2 s against 10.3 s; 32 starts: 39.2 s against 66.7 s; 10 parameters, 16
-    starts: 132 s against 139 s; the 3-parameter batch traces in 6.2 s instead of 8.9 s. On a
-    GPU the lanes are its parallelism.
+    without `vmap` (`runtime.queued_batch`). On a GPU the lanes are its parallelism
+    (`benchmarks/lanes.py` compares the two).
     """
     if lanes is None:
         return None
@@ -136,9 +133,7 @@ def default_chunk(lanes, n_params: int, devices=None) -> int:
     two per device (a CPU device steps one fit at a time, so the chunk only sets how often
     finished work is saved).
 
-    On an accelerator the chunk is its parallelism: the default identification (3 parameters,
-    8 starts) on one H200 fitted in 27.1 s in chunks of 2 and 12.5 s in one chunk of 8
-    (`benchmarks/results/identify_gpu_h200.md`).
+    On an accelerator the chunk is its parallelism, so it holds every lane.
     """
     devices = jax.devices() if devices is None else devices
     per_device = queue_lanes("auto" if lanes is None else lanes, n_params, devices)

@@ -5,9 +5,8 @@ in flight per device, vmapped where a device holds several, see `queue_lanes`; a
 has ended takes the next start), so no device waits for its slowest fit; `lanes=None`, and the
 other methods, run every start at once in lock-step through `runtime.batch.batch_runner` (in
 chunks). Both spread the starts over the devices and run optimistix's own iteration, so they
-agree up to rounding (vmaps of different widths can round differently; `benchmarks/README.md`
-compares their speed). A failed start (non-finite output or unsuccessful solver status) is
-reported, never raised.
+agree up to rounding (vmaps of different widths can round differently). A failed start
+(non-finite output or unsuccessful solver status) is reported, never raised.
 Distinct minima are clustered on the host in box-normalised coordinates.
 """
 

@@ -131,10 +131,9 @@ def scenario_problem(
     - `duration`, `sample_rate`: override the scenario's.
     - `rtol`: solver tolerance of the data and the fit (`atol = 1e-3 rtol`). The default 1e-8
       is tighter than `SolveSettings`' 1e-6 on purpose: this function makes the noise-free runs
-      of the tests (estimates checked to 1e-5 of the truth) and of the benchmarks, all measured
-      at 1e-8, and without noise the solver's own error is what is left (default run: qdd off
-      by 9e-6 at 1e-8, 2.5e-4 at 1e-6, of a 2.7 m/s^2 peak). Against sensor noise of 1-3 % the
-      1e-6 error is negligible: `bogie-jax identify` passes its `--rtol`, default 1e-6.
+      of the tests (estimates checked to 1e-5 of the truth) and of the benchmarks, and without
+      noise the solver's own error is what is left. Against sensor noise of 1-3 % the 1e-6
+      error is negligible: `bogie-jax identify` passes its `--rtol`, default 1e-6.
     - `adjoint`: the objective's adjoint (default: that of `SolveSettings.for_objective()`,
       reverse mode for `jax.grad`; fits switch to forward mode by themselves).
     - `track`: a `TrackIrregularity` to use instead of the scenario's (then `track` of the

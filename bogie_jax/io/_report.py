@@ -32,7 +32,7 @@ from ..monitor import WATCH_NOTE, misfit_warning, verdict_label
 VERDICTS_FORMAT = "bogie_jax.verdicts/1"
 VERDICTS_FILE = "verdicts.json"
 VERDICT_KEYS = ("name", "verdict", "estimate", "ci95", "tolerance_band", "unit")
-RULES = 'the README of bogie_jax, section "Verdicts and trends"'
+RULES = 'docs/monitoring.md of bogie_jax, section "Verdicts"'
 
 
 def check_date(date) -> str:

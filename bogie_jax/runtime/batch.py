@@ -69,8 +69,8 @@ def per_device(fn: Callable, devices, spec: PartitionSpec):
 
     Not a sharded `jit` of the whole batch (GSPMD): there, a vmapped `while_loop` (every ODE
     solve, every fit) ends when the members of *all* devices are done, so every iteration
-    synchronises the devices; on a 2-device CPU that made a sharded LM batch slower than the same
-    batch on one device (`benchmarks/README.md`). Each device's block runs its own loops here.
+    synchronises the devices, and a second device buys next to nothing. Each device's block runs
+    its own loops here.
     `check_vma=False` because `fn` uses no collectives and optimistix's Jacobian products
     do not type-check under the varying-manual-axes check (jax 0.10.2). `fn` must not call
     lineax's own solvers, which reject right-hand sides inside `shard_map` (see `batch_runner`);

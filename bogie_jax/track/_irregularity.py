@@ -132,10 +132,7 @@ def _evaluate(track: TrackIrregularity, s: Array) -> tuple[Channels, Channels, C
     Written as one product: the value, slope and curvature rows of weights (3, 4) in the local
     coordinate t times the knot rows (y_i, y_i+1, M_i, M_i+1) (4, 3). XLA computes the `dot` once
     and its consumers read it; written as elementwise formulas, the dynamic slices and the cubic
-    were copied into every fusion that reads the track, i.e. all of the vector field. The product
-    cut the programs' HLO by 11-20 %, their compile CPU time by about a tenth and the run time
-    of the residuals and their Jacobian by 17 % and 30 %
-    (`benchmarks/results/compile_s25_track_dot.md`).
+    would be copied into every fusion that reads the track, i.e. all of the vector field.
     """
     h = track.ds
     x = (s - track.s0) / h
