@@ -24,6 +24,7 @@ COMMANDS = {
     "identify": "identify",
     "sensitivity": "sensitivity",
     "monitor": "monitor",
+    "contact": "contact",
 }
 """Command name -> module of `bogie_jax.cli`."""
 

@@ -1,5 +1,7 @@
-"""Wheel-rail contact: cone-on-rail geometry, Hertz normal contact, Kalker creep (ref. doc 1-3)."""
+"""Wheel-rail contact: contact geometry (a cone on a circular rail head, or a table from real
+wheel and rail profiles), Hertz normal contact, Kalker creep (ref. doc 1-3)."""
 
+from ._conicity import equivalent_conicity as equivalent_conicity
 from ._creep import (
     linear_creep_forces as linear_creep_forces,
     shen_hedrick_elkins as shen_hedrick_elkins,
@@ -20,4 +22,26 @@ from ._kalker import (
     creep_coefficients as creep_coefficients,
     kalker_coefficients as kalker_coefficients,
     shear_modulus as shear_modulus,
+)
+from ._named import (
+    PROFILE_PAIRS as PROFILE_PAIRS,
+    named_contact_table as named_contact_table,
+    profile_pair as profile_pair,
+    shipped_profile as shipped_profile,
+)
+from ._placement import (
+    PlacedProfiles as PlacedProfiles,
+    ProfileSetup as ProfileSetup,
+    place_profiles as place_profiles,
+)
+from ._profile import (
+    Profile as Profile,
+    ProfileError as ProfileError,
+    read_profile as read_profile,
+    write_csv as write_csv,
+)
+from ._search import (
+    COLUMNS as COLUMNS,
+    ContactTable as ContactTable,
+    contact_table as contact_table,
 )
