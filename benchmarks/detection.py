@@ -37,9 +37,9 @@ track_error=<the records' error RMS, --track-error>)`, default arguments otherwi
 verdicts, estimates (and, with a track error, the fitted values before its bias is removed),
 standard errors, 95 % intervals, fit status (with the horizon stages fitted and the
 misfit ratio, `FitSummary`), each run's fitted speed factor and track position against their
-true values, wall times; each finished
-case is appended as one line of `results/<out>.jsonl` (per shard: `<out>.shard<i>of<n>.jsonl`)
-and a re-run skips the cases found there.
+true values, wall times; each finished case is appended as one line of
+`results/detection/<out>.jsonl` (per shard: `<out>.shard<i>of<n>.jsonl`) and a re-run skips
+the cases found there.
 
 **Aggregates** (over every record of `<out>*.jsonl`): per defect type the detection rate (any
 element degraded or failed), the correct-element rate among detected cases (an alarm on a
@@ -63,12 +63,11 @@ Run (from the repository root):
     python benchmarks/detection.py --imperfection speed        # 30 cases, one imperfection
     python benchmarks/detection.py --shard 0/2 --workers 16    # half the cases (other: 1/2)
     python benchmarks/detection.py --report                    # tables from the records only
-    python benchmarks/detection.py --track-error 0.3 --out detection_track_bias
+    python benchmarks/detection.py --duration 8 --track-error 0.3 --out two_8s_runs
                         # the records' 0.3 mm error in the intervals, its bias removed
-                        # (results/detection_track_error.*: the same at b2235ac, before the
-                        # bias removal)
-Writes results/<out>.json (records + aggregates + environment) and results/<out>.md; <out>
-is `detection` for the default imperfections, else `detection_<imperfections>`.
+Writes results/detection/<out>.json (records + aggregates + environment) and
+results/detection/<out>.md; <out> is `default_imperfections` for the default imperfections,
+else the imperfections' names joined by `-`.
 """
 
 import os
@@ -120,6 +119,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._common import RESULTS, write_outputs  # noqa: E402
 
 
+FOLDER = RESULTS / "detection"
+
+
 IMPERFECTIONS = ("track", "speed", "bias", "nonlinear", "channel-noise", "worn-wheels")
 ALIASES = {
     "default": ("track", "speed", "bias"),
@@ -148,8 +150,8 @@ def parse_imperfections(text: str) -> tuple[str, ...]:
 
 def stem(imperfections: tuple[str, ...]) -> str:
     if imperfections == ALIASES["default"]:
-        return "detection"
-    return "detection_" + ("-".join(imperfections) if imperfections else "none")
+        return "default_imperfections"
+    return "-".join(imperfections) if imperfections else "none"
 
 
 def config_of(args) -> dict:
@@ -334,14 +336,14 @@ def config_hash(cfg: dict) -> str:
 
 def jsonl_path(out: str, shard: tuple[int, int]) -> Path:
     i, n = shard
-    return RESULTS / (f"{out}.jsonl" if n == 1 else f"{out}.shard{i}of{n}.jsonl")
+    return FOLDER / (f"{out}.jsonl" if n == 1 else f"{out}.shard{i}of{n}.jsonl")
 
 
 def load_records(out: str, cfg: dict) -> dict[int, dict]:
     """Every record of `<out>.jsonl` and `<out>.shard*.jsonl` (by case index); a record of
     another configuration raises (use another `--out`)."""
     want, records = config_hash(cfg), {}
-    for path in sorted(RESULTS.glob(f"{out}.jsonl")) + sorted(RESULTS.glob(f"{out}.shard*.jsonl")):
+    for path in sorted(FOLDER.glob(f"{out}.jsonl")) + sorted(FOLDER.glob(f"{out}.shard*.jsonl")):
         for line in path.read_text().splitlines():
             if not line.strip():
                 continue
@@ -761,13 +763,15 @@ def main(argv=None):
     summary, md = aggregate(records, cfg)
     ordered = [records[k] for k in sorted(records)]
     # only aggregated again: the environment stays that of the run that measured the records
-    previous = RESULTS / f"{args.out}.json"
+    previous = FOLDER / f"{args.out}.json"
     env = (
         json.loads(previous.read_text()).get("environment")
         if args.report and previous.exists()
         else None
     )
-    write_outputs(args.out, ordered, md, extra={"config": cfg, "summary": summary}, env=env)
+    write_outputs(
+        f"detection/{args.out}", ordered, md, extra={"config": cfg, "summary": summary}, env=env
+    )
 
 
 if __name__ == "__main__":

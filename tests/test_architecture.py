@@ -193,3 +193,84 @@ def test_a_source_checkout_that_is_not_installed_still_imports():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "unknown (not installed)"
+
+
+# --- the house a newcomer reads: README sizes and result files ---
+
+README_MAX_LINES = 250
+BENCHMARKS_README_MAX_LINES = 300
+RESULTS = ROOT / "benchmarks" / "results"
+PERIOD_WORDS = {"before", "after", "now", "old", "new", "latest", "today", "yesterday"}
+
+
+def names_a_work_period(stem: str) -> bool:
+    """Whether a result's name names a work period or a moment: `s18`, `session13`, `sprint2`,
+    `before`, `after`, `now`, ... or a date (`2026-11-26`)."""
+    for token in stem.replace(".", "_").split("_"):
+        if token.count("-") == 2 and token.replace("-", "").isdigit():
+            return True
+        for word in token.lower().split("-"):
+            if word in PERIOD_WORDS or (word[:1] == "s" and word[1:].isdigit()):
+                return True
+            if word.startswith(("session", "sprint")):
+                return True
+    return False
+
+
+def test_readmes_fit_their_line_budgets():
+    """The README is for users and the benchmarks README an index; history goes to docs/."""
+    for path, limit in (
+        (ROOT / "README.md", README_MAX_LINES),
+        (ROOT / "benchmarks" / "README.md", BENCHMARKS_README_MAX_LINES),
+    ):
+        n = len(path.read_text().splitlines())
+        assert n <= limit, f"{path.relative_to(ROOT)} has {n} lines, more than {limit}"
+
+
+def _result_files():
+    return sorted(p for p in RESULTS.rglob("*") if p.is_file() and p.suffix != ".tmp")
+
+
+def test_result_files_sit_in_their_benchmarks_folder_and_name_no_work_period():
+    """`results/<benchmark>/<what it measures>.<ext>`: the folder is a benchmark script's name,
+    and no part of the path names a work period or a moment (`compile_s18_before`)."""
+    scripts = {p.stem for p in (ROOT / "benchmarks").glob("*.py") if not p.stem.startswith("_")}
+    bad = []
+    for path in _result_files():
+        parts = path.relative_to(RESULTS).parts
+        stem = parts[-1].split(".")[0]
+        if len(parts) != 2 or parts[0] not in scripts or names_a_work_period(stem):
+            bad.append(str(path.relative_to(ROOT)))
+    assert not bad, "result files outside results/<benchmark>/ or named after a period:\n" + (
+        "\n".join(bad)
+    )
+
+
+def test_every_result_file_is_named_in_the_benchmarks_readme_with_commit_and_date():
+    """Each current result is listed in `benchmarks/README.md`, and its JSON and markdown say
+    which commit measured it and when."""
+    readme = (ROOT / "benchmarks" / "README.md").read_text()
+    missing, unstamped = [], []
+    for path in _result_files():
+        name = f"{path.parent.name}/{path.name.split('.')[0]}"
+        if name not in readme:
+            missing.append(name)
+        if path.suffix in (".json", ".md"):
+            text = path.read_text()
+            keys = ('"commit"', '"date"') if path.suffix == ".json" else ("commit", "20")
+            if not all(k in text for k in keys):
+                unstamped.append(str(path.relative_to(ROOT)))
+    assert not missing, "result files not named in benchmarks/README.md: " + ", ".join(missing)
+    assert not unstamped, "results without commit and date: " + ", ".join(unstamped)
+
+
+def test_the_work_period_rule_catches_the_old_names():
+    for name in ("compile_s18_before", "compile_session13", "compile_now", "detection_2026-11-26"):
+        assert names_a_work_period(name), name
+    for name in (
+        "two_8s_runs",
+        "cold_and_warm",
+        "one_vs_many_lanes_cpu",
+        "multistart_vs_annealing",
+    ):
+        assert not names_a_work_period(name), name
