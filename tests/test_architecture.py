@@ -38,6 +38,7 @@ LAYERS = {
     "monitor": 7,
     "io": 8,
     "plot": 8,
+    "fleet": 8.5,  # reads measurement and verdicts files (io); under the command line
     "cli": 9,
     "__init__": 10,  # the top-level re-exports
 }

@@ -1,5 +1,5 @@
 """The `bogie-jax` command line: one module per command (`simulate`, `critical_speed`, `demo`,
-`gradcheck`, `identify`, `sensitivity`, `monitor`), each with `add_parser(subparsers)` and
+`gradcheck`, `identify`, `sensitivity`, `monitor`, `fleet`), each with `add_parser(subparsers)` and
 `run(args, progress)`.
 
 `main` sets the process up before JAX is imported (every CPU core as a device, the persistent
@@ -25,6 +25,7 @@ COMMANDS = {
     "sensitivity": "sensitivity",
     "monitor": "monitor",
     "contact": "contact",
+    "fleet": "fleet",
 }
 """Command name -> module of `bogie_jax.cli`."""
 

@@ -1,0 +1,36 @@
+"""A fleet: many bogies judged from an inventory, on one machine or a Dask cluster, with their
+history in a database (SQLite or PostgreSQL, through SQLAlchemy) and one static HTML page
+(`docs/fleet.md`). Needs the `fleet` extra (`pip install "bogie-jax[fleet]"`)."""
+
+from ._engine import (
+    DaskEngine as DaskEngine,
+    EngineError as EngineError,
+    SerialEngine as SerialEngine,
+)
+from ._import import (
+    ImportProblem as ImportProblem,
+    import_results as import_results,
+    read_results as read_results,
+)
+from ._inventory import (
+    INVENTORY_FORMAT as INVENTORY_FORMAT,
+    InventoryError as InventoryError,
+    read_inventory as read_inventory,
+)
+from ._migrations import SchemaError as SchemaError, latest_version as latest_version
+from ._page import fleet_page as fleet_page, write_fleet_page as write_fleet_page
+from ._run import (
+    FleetSummary as FleetSummary,
+    pending_tasks as pending_tasks,
+    run_fleet as run_fleet,
+)
+from ._store import FleetStore as FleetStore, open_store as open_store
+from ._task import JudgeTask as JudgeTask, Outcome as Outcome
+from ._trends import ElementTrend as ElementTrend, element_trends as element_trends
+from ._url import StoreError as StoreError
+from ._values import (
+    BogieEntry as BogieEntry,
+    Inventory as Inventory,
+    MonitorSettings as MonitorSettings,
+    Visit as Visit,
+)

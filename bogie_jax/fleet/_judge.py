@@ -1,0 +1,52 @@
+"""Judge one bogie on one date from its measurement files: the fleet's one call of
+`bogie_jax.monitor.monitor`. Returns the `verdicts.json` record (`bogie_jax.io`), the same
+object `bogie-jax monitor --data` writes and `fleet import` reads."""
+
+from ..io import load_measurement, load_track, load_track_csv, verdicts_record
+from ..monitor import monitor
+from ..params import PARAMETER_SETS
+from ..sensitivity import sensor_layouts
+from ._task import JudgeTask
+
+
+def _tracks(task: JudgeTask, measurements):
+    if task.tracks:
+        files = task.tracks * len(measurements) if len(task.tracks) == 1 else task.tracks
+        return [load_track_csv(f) for f in files]
+    tracks = []
+    for f, m in zip(task.files, measurements):
+        if m.track is None:
+            raise ValueError(f"{f} stores no track reference: give `tracks` in the inventory")
+        tracks.append(load_track(m.track))
+    return tracks
+
+
+def _monitor_options(s) -> dict:
+    """`monitor`'s keyword arguments for the fleet's settings: a `MonitorOptions` where the
+    monitor package has it (issue "A house a newcomer carries on"), else its keywords."""
+    values = dict(
+        candidates=s.candidates or None,
+        band=s.band,
+        false_alarm_rate=s.false_alarm_rate,
+        track_error=1e-3 * s.track_error_mm,
+    )
+    try:
+        from ..monitor import MonitorOptions
+    except ImportError:
+        return values
+    return {"options": MonitorOptions(**values)}
+
+
+def judge_visit(task: JudgeTask) -> dict:
+    """The `verdicts.json` record of `task`'s bogie and date (with `bogie_id`, `vehicle`,
+    `layout` and `data`). **Raises:** what reading the files and `monitor` raise."""
+    params = PARAMETER_SETS[task.vehicle]()
+    sensors = sensor_layouts(params)[task.layout]
+    measurements = [load_measurement(f, sensors=sensors) for f in task.files]
+    tracks = _tracks(task, measurements)
+    result = monitor(measurements, tracks, params=params, **_monitor_options(task.settings))
+    source = f"bogie-jax fleet run: {task.bogie_id} on {task.date}"
+    return verdicts_record(
+        result, date=task.date, source=source, bogie_id=task.bogie_id, vehicle=task.vehicle,
+        layout=task.layout, data=list(task.files),
+    )  # fmt: skip
