@@ -33,8 +33,8 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 - `none`: no imperfection; `all`: (a)-(f); `offset` is another name of `track`.
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal,
-track_error=<the records' error RMS, --track-error>)`, default arguments otherwise): truth,
-verdicts, estimates (and, with a track error, the fitted values before its bias is removed),
+options=MonitorOptions(track_error=<the records' error RMS, --track-error>))`, default options
+otherwise): truth, verdicts, estimates (and, with a track error, the fitted values before its bias is removed),
 standard errors, 95 % intervals, fit status (with the horizon stages fitted and the
 misfit ratio, `FitSummary`), each run's fitted speed factor and track position against their
 true values, wall times; each finished case is appended as one line of
@@ -101,6 +101,7 @@ from bogie_jax.measure import default_sensor_layout, synthetic_measurement
 from bogie_jax.monitor import (
     DEFAULT_CANDIDATES,
     DEFECT_SCENARIOS,
+    MonitorOptions,
     group_value,
     interval_outside,
     monitor,
@@ -257,10 +258,11 @@ def run_case(cfg: dict, index: int) -> dict:
         ]
         record["simulate_s"] = time.perf_counter() - tic
         t0 = time.perf_counter()
-        result = monitor(
-            runs, tracks, params=nominal, false_alarm_rate=cfg["false_alarm_rate"],
+        options = MonitorOptions(
+            false_alarm_rate=cfg["false_alarm_rate"],
             track_error=1e-3 * cfg.get("track_error_mm", 0.0),
-        )  # fmt: skip
+        )
+        result = monitor(runs, tracks, params=nominal, options=options)
         record["monitor_s"] = time.perf_counter() - t0
     except (RuntimeError, ValueError) as e:
         record.update(error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - tic)

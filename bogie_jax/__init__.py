@@ -37,13 +37,13 @@ _EXPORTS = {  # what a notebook needs, by module
     ),
     "sensitivity": ("fisher_information", "profile_likelihood", "sensitivity_sobol"),
     "runtime.compilation_cache": ("use_compilation_cache",),
-    "monitor": (
+    "monitor": (  # the subpackage: `bogie_jax.monitor.monitor` is the function
         "DEFECT_SCENARIOS",
         "DefectScenario",
+        "MonitorOptions",
         "RunSpec",
         "ToleranceBand",
         "judge",
-        "monitor",
         "scenario_measurements",
         "trend",
     ),

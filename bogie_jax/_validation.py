@@ -15,23 +15,48 @@ def _concrete_float(name: str, value):
         raise TypeError(f"`{name}` must be a real number, got {value!r}") from None
 
 
-def check_range(name: str, value, lo: float, hi: float, unit: str = "", *, open_lo: bool = False):
-    """Raise ValueError naming `name`, its value and the valid range unless lo <(=) value <= hi."""
+def check_range(
+    name: str,
+    value,
+    lo: float,
+    hi: float,
+    unit: str = "",
+    *,
+    open_lo: bool = False,
+    open_hi: bool = False,
+):
+    """Raise ValueError naming `name`, its value and the valid range unless value is finite and
+    lies in [lo, hi] (`open_lo`, `open_hi`: that end excluded; `hi` may be `inf`)."""
     x = _concrete_float(name, value)
     if x is None:
         return
-    ok = math.isfinite(x) and (x > lo if open_lo else x >= lo) and x <= hi
+    ok = math.isfinite(x) and (x > lo if open_lo else x >= lo) and (x < hi if open_hi else x <= hi)
     if not ok:
-        bracket = "(" if open_lo else "["
+        left, right = "(" if open_lo else "[", ")" if open_hi or math.isinf(hi) else "]"
         unit = f" {unit}" if unit else ""
         raise ValueError(
-            f"`{name}` = {x:g}{unit} is outside the valid range {bracket}{lo:g}, {hi:g}]{unit}"
+            f"`{name}` = {x:g}{unit} is outside the valid range {left}{lo:g}, {hi:g}{right}{unit}"
         )
 
 
-def check_positive_int(name: str, value, hi: int = 10**9):
-    if isinstance(value, bool) or not isinstance(value, int) or not (1 <= value <= hi):
-        raise ValueError(f"`{name}` must be an integer in [1, {hi}], got {value!r}")
+def check_number(name: str, value, lo: float, hi: float, unit: str = "", **ends) -> float:
+    """`value` as a float: a real number (not a bool or a string) in the range of `check_range`
+    (`ends`: its `open_lo`, `open_hi`). **Raises:** `ValueError` naming `name`."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ValueError(f"`{name}` = {value!r} must be a number{f' [{unit}]' if unit else ''}")
+    check_range(name, value, lo, hi, unit, **ends)
+    return float(value)
+
+
+def check_positive_int(name: str, value, hi: int = 10**9, *, lo: int = 1) -> int:
+    """`value` as an int, or `ValueError` naming `name` unless it is an integer in [lo, hi]."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | np.integer)
+        or not (lo <= value <= hi)
+    ):
+        raise ValueError(f"`{name}` must be an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
 
 
 def check_power_of_two(name: str, value) -> int:

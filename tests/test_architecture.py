@@ -174,12 +174,14 @@ def test_top_level_re_exports_resolve_and_import_no_jax():
         "import sys, bogie_jax as bj; assert 'jax' not in sys.modules; "
         "[getattr(bj, n) for n in bj.__all__]; import bogie_jax.cost; "
         "assert callable(bj.simulate) and callable(bj.fit), (bj.simulate, bj.fit); "
-        "import bogie_jax.monitor; assert callable(bj.monitor), bj.monitor; "
+        "import bogie_jax.monitor, types; assert isinstance(bj.monitor, types.ModuleType); "
+        "assert not callable(bj.monitor) and callable(bj.monitor.monitor); "
         "print(sorted(bj.__all__))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     names = set(eval(out.stdout))
     assert {"simulate", "fit", "fit_multistart", "make_objective", "judge", "trend"} <= names
+    assert "MonitorOptions" in names and "monitor" not in names  # `bj.monitor`: the package
 
 
 def test_a_source_checkout_that_is_not_installed_still_imports():

@@ -143,8 +143,8 @@ def test_ci_matches_numpy_lstsq():
 
 def test_t_quantile():
     dofs = np.array([1.0, 3.0, 10.0, 200.0])
-    got = jax.jit(jax.vmap(lambda d: t_quantile(0.975, d)))(jnp.asarray(dofs))
-    np.testing.assert_allclose(got, scipy.stats.t.ppf(0.975, dofs), rtol=1e-10)  # bisection to fp
+    got = [t_quantile(0.975, d) for d in dofs]  # the one t quantile (monitor's verdicts too)
+    np.testing.assert_allclose(got, scipy.stats.t.ppf(0.975, dofs), rtol=1e-10)
 
 
 def test_bad_input_errors():

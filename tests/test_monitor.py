@@ -34,7 +34,9 @@ from bogie_jax.monitor import (
     MISFIT_LIMIT,
     VERDICTS,
     DefectScenario,
+    MonitorOptions,
     RunSpec,
+    SandwichCovariance,
     ToleranceBand,
     as_defect_scenario,
     classify_elements,
@@ -508,7 +510,7 @@ def test_monitor_continues_over_the_horizon_where_one_fit_misses_the_speed(healt
     tracks = [recorded_track(m.track, noise=0.0, offset=0.0, semi_distance=semi) for m in healthy]
     errors = (-0.08, 0.08)
     data = [with_speed_error(m, e) for m, e in zip(healthy, errors)]
-    result = monitor(data, tracks, horizon_start=0.125)
+    result = monitor(data, tracks, options=MonitorOptions(horizon_start=0.125))
     print(result.table())
     assert result.fit.horizons == (0.125, 0.25)
     assert [run.used for run in result.runs] == [True, True], result.runs
@@ -528,7 +530,7 @@ def test_monitor_fits_the_cone_slope_of_worn_wheels(nominal):
     residual-Jacobian program (about 2.5 min on the shared 2 cores; passed 2026-11-23)."""
     worn = worn_wheels(nominal, 1.3)
     data = scenario_measurements("healthy", RUNS, params=worn)
-    result = monitor(data, nuisance=("contact.cone_slope",))
+    result = monitor(data, options=MonitorOptions(nuisance=("contact.cone_slope",)))
     print(result.table())
     slope = result.fit.nuisance["contact.cone_slope"]
     assert slope["estimate"] == pytest.approx(1.3 * slope["nominal"], rel=1e-2), slope
@@ -556,30 +558,37 @@ def test_monitor_rejects_bad_input_before_fitting(nominal):
     with pytest.raises(ValueError, match="one track per run"):
         monitor([a, b], [track])
     with pytest.raises(ValueError, match="band"):
-        monitor([a, b], band=0.0)
+        monitor([a, b], options=MonitorOptions(band=0.0))
     with pytest.raises(ValueError, match="band"):
-        monitor([a, b], band={"yaw_dampers.left.c": 0.0})
+        monitor([a, b], options=MonitorOptions(band={"yaw_dampers.left.c": 0.0}))
     with pytest.raises(ValueError, match="zero width"):
-        monitor([a, b], band={"yaw_dampers.left.c": ToleranceBand((4e5, 4e5))})
-    with pytest.raises(ValueError, match="false_alarm_rate"):
-        monitor([a, b], false_alarm_rate=0.7)
+        band = {"yaw_dampers.left.c": ToleranceBand((4e5, 4e5))}
+        monitor([a, b], options=MonitorOptions(band=band))
+    with pytest.raises(ValueError, match=r"`false_alarm_rate` = 0.7 is outside .* \(0, 0.5\)"):
+        MonitorOptions(false_alarm_rate=0.7)
     with pytest.raises(ValueError, match="unknown parameter"):
-        monitor([a, b], candidates=["yaw_dampers.c", "primary.kzz"])
-    with pytest.raises(ValueError, match="noise"):
-        monitor([a, b], noise="guess")
+        monitor([a, b], options=MonitorOptions(candidates=["yaw_dampers.c", "primary.kzz"]))
+    with pytest.raises(TypeError, match="`noise` = 'guess' must be .*PerChannelNoise"):
+        MonitorOptions(noise="guess")  # strings name strategies only at the command line
     with pytest.raises(ValueError, match="nuisance"):
-        monitor([a, b], nuisance=("yaw_dampers.left.c",))  # a candidate
+        monitor([a, b], options=MonitorOptions(nuisance=("yaw_dampers.left.c",)))  # a candidate
     with pytest.raises(ValueError, match="nuisance"):
-        monitor([a, b], nuisance=("contact.cone_slopes",))
+        monitor([a, b], options=MonitorOptions(nuisance=("contact.cone_slopes",)))
     with pytest.raises(ValueError, match="`track_error` = -0.0003 m"):
-        monitor([a, b], track_error=-3e-4)
-    with pytest.raises(ValueError, match="`track_error_draws` = 1"):
-        monitor([a, b], track_error=3e-4, track_error_draws=1)
-    with pytest.raises(ValueError, match="`covariance` = 'robust'"):
-        monitor([a, b], covariance="robust")
+        MonitorOptions(track_error=-3e-4)
+    with pytest.raises(ValueError, match=r"`track_error_draws` must be an integer in \[2, .*got 1"):
+        MonitorOptions(track_error=3e-4, track_error_draws=1)
+    with pytest.raises(TypeError, match="`covariance` = 'robust'"):
+        MonitorOptions(covariance="robust")
+    with pytest.raises(ValueError, match="`bandwidth` = 0.5"):
+        SandwichCovariance(bandwidth=0.5)
+    with pytest.raises(ValueError, match="`max_steps` must be an integer"):
+        MonitorOptions(max_steps=0)
+    with pytest.raises(TypeError, match="`options` must be a MonitorOptions"):
+        monitor([a, b], options={"track_error": 3e-4})
     for start in (0.0, -1.0, float("nan"), "1", True):
         with pytest.raises(ValueError, match="`horizon_start`"):
-            monitor([a, b], horizon_start=start)
+            MonitorOptions(horizon_start=start)
 
 
 @pytest.mark.heavy

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from bogie_jax.cost import covariance_from_jacobian, with_model_error
-from bogie_jax.monitor import record_error, track_error_effect
+from bogie_jax.monitor import RecordError, record_error, track_error_effect
 from bogie_jax.track import TrackIrregularity, TrackReference
 
 
@@ -94,7 +94,7 @@ def test_covariance_of_the_shift_matches_its_closed_form():
 
     rms, draws = 3e-4, 2000
     effect = track_error_effect(
-        evaluate_at, [track], np.zeros(n), rms=rms, semi_distance=SEMI, draws=draws, seed=3
+        evaluate_at, [track], np.zeros(n), RecordError(rms, SEMI), draws=draws, seed=3
     )
     got = effect.covariance
     assert effect.draws == draws
@@ -146,8 +146,8 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
             return y - phi[0] * x, -x[:, None]
 
         effect = track_error_effect(
-            evaluate_at, [TrackIrregularity(0.0, 0.5, record)], np.array([a_hat]), rms=rms,
-            semi_distance=SEMI, draws=16, seed=int(rng.integers(2**31)),
+            evaluate_at, [TrackIrregularity(0.0, 0.5, record)], np.array([a_hat]),
+            RecordError(rms, SEMI), draws=16, seed=int(rng.integers(2**31)),
         )  # fmt: skip
         fitted.append(a_hat)
         corrected.append(a_hat - float(effect.bias[0]))
@@ -183,7 +183,7 @@ def test_each_draw_is_refitted_to_the_perturbed_records_minimum():
 
     track = TrackIrregularity(0.0, 0.5, record)
     effect = track_error_effect(
-        evaluate_at, [track], phi0, rms=rms, semi_distance=SEMI, draws=40, refit_steps=6, seed=11
+        evaluate_at, [track], phi0, RecordError(rms, SEMI), draws=40, refit_steps=6, seed=11
     )
     draws = np.random.default_rng(11)
     refits = []
@@ -214,13 +214,13 @@ def test_a_failed_draw_is_left_out():
 
     # calls: 1 the fit; draw 1: 2, 3 (its second step fails); draw 2: 4, 5; draw 3: 6 (fails)
     effect = track_error_effect(
-        evaluate_at, [track], np.zeros(2), rms=1e-4, semi_distance=SEMI, draws=5, refit_steps=2
+        evaluate_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=5, refit_steps=2
     )
     assert effect.draws == 4 and effect.refit_draws == 3 and effect.covariance.shape == (2, 2)
     assert np.all(np.isfinite(effect.covariance)) and np.all(np.isfinite(effect.bias))
     with pytest.raises(ValueError, match="refit_steps"):
         track_error_effect(
-            evaluate_at, [track], np.zeros(2), rms=1e-4, semi_distance=SEMI, draws=2,
+            evaluate_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=2,
             refit_steps=0,
         )  # fmt: skip
 

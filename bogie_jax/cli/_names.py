@@ -6,7 +6,7 @@ library: `lookup("--method", "lm")` is identify's Levenberg-Marquardt method obj
 """
 
 from ..identify import DESIGNS, LOCAL_METHODS, SCENARIOS
-from ..monitor import DEFECT_SCENARIOS
+from ..monitor import COVARIANCES, DEFECT_SCENARIOS, NOISE_MODELS
 from ..params import PARAMETER_SETS
 from ..sensitivity import (
     LAYOUTS,
@@ -30,6 +30,9 @@ TABLE: dict[str, dict[str, object]] = {
     "scenario": dict(SCENARIOS),
     # demo: the defect scenarios of bogie_jax.monitor
     "defect": dict(DEFECT_SCENARIOS),
+    # monitor: the noise model and the covariance rule (strategy objects)
+    "noise": dict(NOISE_MODELS),
+    "covariance": dict(COVARIANCES),
     # sensitivity: the analysis each `--method` runs
     "analysis": {
         "screening": sensitivity_sweeps,

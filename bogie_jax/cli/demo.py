@@ -20,7 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from ..io import check_date, save_measurement, save_track_csv
-from ..monitor import RunSpec, group_value, monitor, recorded_track, scenario_measurements
+from ..monitor import (
+    MonitorOptions,
+    RunSpec,
+    group_value,
+    monitor,
+    recorded_track,
+    scenario_measurements,
+)
 from ..params import get_parameter, manchester_benchmark
 from ._common import UsageError, split_names
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
@@ -199,8 +206,8 @@ def run(args, progress) -> int:
         measurements,
         tracks,
         params=params,
-        false_alarm_rate=args.false_alarm_rate,
-        track_error=noise_m,  # the record's error is known here: carried into the intervals
+        # the record's error is known here: carried into the intervals
+        options=MonitorOptions(false_alarm_rate=args.false_alarm_rate, track_error=noise_m),
         progress=lambda line: progress.say(f"  {line}"),
     )
     progress.say(verdict_table(result))

@@ -25,10 +25,10 @@ from ..io import (
     write_trend_report,
     write_trends,
 )
-from ..monitor import ToleranceBand, monitor, same_measure, trend
+from ..monitor import MonitorOptions, ToleranceBand, monitor, same_measure, trend
 from ._common import UsageError, text_table
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
-from ._names import lookup
+from ._names import lookup, names
 
 
 def add_parser(sub):
@@ -91,6 +91,19 @@ def add_parser(sub):
         help="--data: RMS error of the track records per channel [mm], carried into the "
         "intervals (default 0: the records are taken as exact)",
     )
+    p.add_argument(
+        "--noise",
+        choices=names("noise"),
+        default="per-channel",
+        help="--data: noise model (default per-channel: each channel's noise estimated and the "
+        "fit reweighted)",
+    )
+    p.add_argument(
+        "--covariance",
+        choices=names("covariance"),
+        default=None,
+        help="--data: covariance rule (default sandwich, gauss-newton with --track-error)",
+    )
     return p
 
 
@@ -147,13 +160,18 @@ def run_data(args, progress) -> int:
             f"{len(m.channels)} channels, track {m.track.describe() if m.track else 'given'}"
         )
     try:
+        options = MonitorOptions(
+            band=args.band,
+            false_alarm_rate=args.false_alarm_rate,
+            track_error=1e-3 * args.track_error,
+            noise=lookup("noise", args.noise),
+            covariance=None if args.covariance is None else lookup("covariance", args.covariance),
+        )
         result = monitor(
             measurements,
             tracks,
             params=params,
-            band=args.band,
-            false_alarm_rate=args.false_alarm_rate,
-            track_error=1e-3 * args.track_error,
+            options=options,
             progress=lambda line: progress.say(f"  {line}"),
         )
     except ValueError as e:  # mixed layouts, a zero-width band, ... (before any compile)

@@ -46,7 +46,6 @@ from ._local import (
     fit_statistics as fit_statistics,
     local_methods as local_methods,
     statistics as statistics,
-    t_quantile as t_quantile,
 )
 from ._multistart import (
     DESIGNS as DESIGNS,
@@ -76,4 +75,9 @@ from ._scenarios import (
     relative_errors as relative_errors,
     scenario_problem as scenario_problem,
     tolerance_bounds as tolerance_bounds,
+)
+from ._student_t import (
+    satterthwaite_dof as satterthwaite_dof,
+    t_quantile as t_quantile,
+    two_sided_p_value as two_sided_p_value,
 )

@@ -28,6 +28,7 @@ from ._problem import (
     start_theta,
     status_name,
 )
+from ._student_t import t_quantile
 
 
 class LocalOutput(eqx.Module):
@@ -276,24 +277,6 @@ class FitResult(eqx.Module):
     @property
     def status_name(self) -> str:
         return status_name(self.status)
-
-
-def t_quantile(q: float, dof: int):
-    """Student-t quantile by bisection on `betainc` (jax.scipy has no `t.ppf`)."""
-    dof = jnp.asarray(dof, float)
-    tail = 1.0 - q
-
-    def upper_tail(t):
-        return 0.5 * jax.scipy.special.betainc(0.5 * dof, 0.5, dof / (dof + t**2))
-
-    def body(_, lohi):
-        lo, hi = lohi
-        mid = 0.5 * (lo + hi)
-        too_small = upper_tail(mid) > tail
-        return jnp.where(too_small, mid, lo), jnp.where(too_small, hi, mid)
-
-    lo, hi = jax.lax.fori_loop(0, 200, body, (jnp.asarray(0.0), jnp.asarray(1e4)))
-    return 0.5 * (lo + hi)
 
 
 def fit_statistics(transform, theta, cost, jac, bound_tol):

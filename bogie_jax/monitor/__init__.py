@@ -1,8 +1,14 @@
-"""Condition monitoring: verdicts per suspension element and trends over dated runs."""
+"""Condition monitoring: verdicts per suspension element and trends over dated runs.
 
-import sys
-import types
+`from bogie_jax.monitor import monitor, MonitorOptions`: `monitor(measurements, tracks,
+params=..., options=MonitorOptions(...))`.
+"""
 
+from ..identify import (  # the one t distribution, re-exported for the verdict rules
+    satterthwaite_dof as satterthwaite_dof,
+    t_quantile as t_quantile,
+    two_sided_p_value as two_sided_p_value,
+)
 from ._defects import (
     DEFECT_SCENARIOS as DEFECT_SCENARIOS,
     FAILED_FLOOR as FAILED_FLOOR,
@@ -25,6 +31,7 @@ from ._elements import (
     group_weights as group_weights,
     same_measure as same_measure,
 )
+from ._fit import REWEIGHTS as REWEIGHTS, SETTLED as SETTLED
 from ._horizon import (
     HORIZON_START as HORIZON_START,
     horizon_stages as horizon_stages,
@@ -41,19 +48,14 @@ from ._imperfections import (
     with_speed_error as with_speed_error,
     worn_wheels as worn_wheels,
 )
-from ._monitor import (
-    COVARIANCES as COVARIANCES,
-    NOISE_MODES as NOISE_MODES,
-    REWEIGHTS as REWEIGHTS,
-    SETTLED as SETTLED,
-    monitor as monitor,
-)
+from ._monitor import monitor as monitor
 from ._nuisance import (
     DEFAULT_NUISANCE as DEFAULT_NUISANCE,
     MAX_OFFSET as MAX_OFFSET,
     OFFSET_SCALE as OFFSET_SCALE,
     SPEED_SCALE as SPEED_SCALE,
 )
+from ._options import MonitorOptions as MonitorOptions
 from ._profile import ProfilePoint as ProfilePoint, profile_point as profile_point
 from ._result import (
     MISFIT_LIMIT as MISFIT_LIMIT,
@@ -69,12 +71,20 @@ from ._robust import (
     channel_weights as channel_weights,
     leverage as leverage,
 )
-from ._student_t import (
-    satterthwaite_dof as satterthwaite_dof,
-    t_quantile as t_quantile,
-    two_sided_p_value as two_sided_p_value,
+from ._statistics import (
+    COVARIANCES as COVARIANCES,
+    NOISE_MODELS as NOISE_MODELS,
+    AbstractCovariance as AbstractCovariance,
+    AbstractNoiseModel as AbstractNoiseModel,
+    EstimatedNoise as EstimatedNoise,
+    GaussNewtonCovariance as GaussNewtonCovariance,
+    MaxNoise as MaxNoise,
+    NominalNoise as NominalNoise,
+    PerChannelNoise as PerChannelNoise,
+    SandwichCovariance as SandwichCovariance,
 )
 from ._track_error import (
+    RecordError as RecordError,
     TrackErrorEffect as TrackErrorEffect,
     record_error as record_error,
     track_error_effect as track_error_effect,
@@ -90,15 +100,3 @@ from ._verdict import (
     judge as judge,
     verdict_label as verdict_label,
 )
-
-
-class _CallablePackage(types.ModuleType):
-    """`bogie_jax.monitor` is this package and, called, the function `monitor`: importing a
-    submodule binds it as an attribute of its parent package, so the top-level export
-    `bogie_jax.monitor` would otherwise be the package, not the function."""
-
-    def __call__(self, *args, **kwargs):
-        return monitor(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallablePackage

@@ -222,6 +222,29 @@ class RunSpec:
         return self.start_position + self.speed * self.duration
 
 
+def _check_runs(runs, key) -> tuple[RunSpec, ...]:
+    """`runs` as a non-empty tuple of `RunSpec`s, with a `key` where one is noisy."""
+    runs = tuple(runs)
+    if not runs:
+        raise ValueError("`runs` is empty: give at least one RunSpec")
+    for k, run in enumerate(runs):
+        if not isinstance(run, RunSpec):
+            raise TypeError(f"`runs[{k}]` must be a RunSpec, got {type(run).__name__}")
+    noisy = [k for k, run in enumerate(runs) if run.noise_scale > 0]
+    if noisy and key is None:
+        raise ValueError(
+            f"`key` is None but run {noisy[0]} has noise_scale = {runs[noisy[0]].noise_scale!r}: "
+            "pass a PRNG key (jax.random.PRNGKey(seed)) or set noise_scale=0"
+        )
+    mid_run = [k for k, run in enumerate(runs) if run.start_position > 0]
+    if mid_run and "start_position" not in inspect.signature(synthetic_measurement).parameters:
+        raise ValueError(
+            f"run {mid_run[0]} has start_position = {runs[mid_run[0]].start_position!r} m: this "
+            "version of synthetic_measurement has no mid-run windows; use 0"
+        )
+    return runs
+
+
 def scenario_measurements(
     scenario,
     runs: Sequence[RunSpec],
@@ -252,24 +275,7 @@ def scenario_measurements(
     bad scenario, before anything is simulated.
     """
     scenario = as_defect_scenario(scenario)
-    runs = tuple(runs)
-    if not runs:
-        raise ValueError("`runs` is empty: give at least one RunSpec")
-    for k, run in enumerate(runs):
-        if not isinstance(run, RunSpec):
-            raise TypeError(f"`runs[{k}]` must be a RunSpec, got {type(run).__name__}")
-    noisy = [k for k, run in enumerate(runs) if run.noise_scale > 0]
-    if noisy and key is None:
-        raise ValueError(
-            f"`key` is None but run {noisy[0]} has noise_scale = {runs[noisy[0]].noise_scale!r}: "
-            "pass a PRNG key (jax.random.PRNGKey(seed)) or set noise_scale=0"
-        )
-    mid_run = [k for k, run in enumerate(runs) if run.start_position > 0]
-    if mid_run and "start_position" not in inspect.signature(synthetic_measurement).parameters:
-        raise ValueError(
-            f"run {mid_run[0]} has start_position = {runs[mid_run[0]].start_position!r} m: this "
-            "version of synthetic_measurement has no mid-run windows; use 0"
-        )
+    runs = _check_runs(runs, key)
     params = manchester_benchmark() if params is None else params
     truth = scenario.true_params(params)
     wheelbase = 2.0 * float(np.asarray(params.geometry.semi_wheelbase))

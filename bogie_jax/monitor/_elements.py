@@ -196,6 +196,52 @@ def _splits(members):
             yield sorted((sorted(b) for b in blocks), key=lambda b: b[0])
 
 
+@dataclasses.dataclass(frozen=True)
+class _Rule:
+    """The identifiability rule's tests on the Jacobian `jac` of the candidates `names`."""
+
+    params: BogieParams
+    names: tuple[str, ...]
+    jac: np.ndarray
+    nominal: np.ndarray
+    bands: dict
+    band_arg: object
+    z: float
+    limits: tuple[float, float]  # resolution, max_correlation
+
+    def passes(self, coords):
+        """`_passes` on the columns of the coordinates `coords` (a group: its members' sum)."""
+        cols = np.stack([self.jac[:, list(c.members)].sum(axis=1) for c in coords], axis=1)
+        half = np.array([_half_width(c.band, c.nominal) for c in coords])
+        return _passes(cols, self.z, half, *self.limits)
+
+    def element(self, i: int) -> Coordinate:
+        band = self.bands[self.names[i]]
+        return Coordinate(self.names[i], (i,), float(self.nominal[i]), band.unit, band)
+
+    def group(self, members, tied: str) -> Coordinate:
+        name = group_name(self.params, [self.names[i] for i in members], tied)
+        p0 = float(np.mean(self.nominal[members]))
+        unit = self.bands[self.names[members[0]]].unit
+        return Coordinate(
+            name, tuple(members), p0, unit, element_band(name, p0, unit, self.band_arg, tied)
+        )
+
+    def best_split(self, tied: str, members, others) -> list[Coordinate]:
+        """The group whole, or its split with the most parts that all pass beside `others`
+        (the parts' largest se / limit breaking ties)."""
+        best = None
+        for blocks in _splits(members):
+            trial = [self.group(b, tied) for b in blocks]
+            ok, se, limit = self.passes(others + trial)[:3]
+            n = len(trial)
+            if ok[-n:].all():
+                key = (n, -float(np.max(se[-n:] / limit[-n:])))
+                if best is None or key > best[0]:
+                    best = (key, trial)
+        return [self.group(members, tied)] if best is None else best[1]
+
+
 def classify_elements(
     params: BogieParams,
     names: tuple[str, ...],
@@ -211,56 +257,30 @@ def classify_elements(
     `names` at the nominal point. Returns the fitted coordinates and each candidate's status."""
     jac = np.asarray(jacobian, dtype=float)
     nominal = nominal_values(params, names)
-    half = np.array(
-        [(bands[n].healthy[1] - bands[n].healthy[0]) / 2 / p for n, p in zip(names, nominal)]
-    )
+    rule = _Rule(params, names, jac, nominal, bands, band_arg, z, (resolution, max_correlation))
+    half = np.array([_half_width(bands[n], p) for n, p in zip(names, nominal)])
     ok, se, limit, worst, most = _passes(jac, z, half, resolution, max_correlation)
-    alone = [i for i in range(len(names)) if ok[i]]
+    coords = [rule.element(i) for i in range(len(names)) if ok[i]]
     grouped: dict[str, list[int]] = {}
-    for i in range(len(names)):
-        if not ok[i]:
-            grouped.setdefault(tied_group(params, names[i]), []).append(i)
-    coords = [
-        Coordinate(names[i], (i,), float(nominal[i]), bands[names[i]].unit, bands[names[i]])
-        for i in alone
-    ]
-
-    def group(members, tied):
-        gname = group_name(params, [names[i] for i in members], tied)
-        p0 = float(np.mean(nominal[members]))
-        unit = bands[names[members[0]]].unit
-        band = element_band(gname, p0, unit, band_arg, tied)
-        return Coordinate(gname, tuple(members), p0, unit, band)
-
-    def passes(trial):
-        cols = np.stack([jac[:, list(c.members)].sum(axis=1) for c in trial], axis=1)
-        half_g = np.array([_half_width(c.band, c.nominal) for c in trial])
-        return _passes(cols, z, half_g, resolution, max_correlation)
-
+    for i in np.flatnonzero(~ok):
+        grouped.setdefault(tied_group(params, names[i]), []).append(int(i))
     tied_groups = [(t, m) for t, m in grouped.items() if len(m) >= 2]
-    parts = [[group(m, t)] for t, m in tied_groups]  # each tied group whole, then split
-    for k, (tied, members) in enumerate(tied_groups):
-        rest = [group(m, t) for j, (t, m) in enumerate(tied_groups) if j != k]
-        best = None
-        for blocks in _splits(members):
-            trial = [group(b, tied) for b in blocks]
-            ok_b, se_b, limit_b = passes(coords + rest + trial)[:3]
-            n = len(trial)
-            if ok_b[-n:].all():
-                key = (n, -float(np.max(se_b[-n:] / limit_b[-n:])))
-                if best is None or key > best[0]:
-                    best = (key, trial)
-        if best is not None:
-            parts[k] = best[1]
-    groups = [c for p in parts for c in p]
-    status = {i: ("alone", names[i]) for i in alone}
+    groups = [
+        c
+        for k, (tied, members) in enumerate(tied_groups)
+        for c in rule.best_split(
+            tied,
+            members,
+            coords + [rule.group(m, t) for j, (t, m) in enumerate(tied_groups) if j != k],
+        )
+    ]
+    status = {c.members[0]: ("alone", c.name) for c in coords}
     if groups:
-        trial = coords + groups
-        ok_g = passes(trial)[0]
-        for c, good in zip(groups, ok_g[len(coords) :]):
-            if good:
-                coords.append(c)
-                status.update({i: ("group", c.name) for i in c.members})
+        ok_g = rule.passes(coords + groups)[0][len(coords) :]
+        coords += [c for c, good in zip(groups, ok_g) if good]
+        status.update(
+            {i: ("group", c.name) for c, good in zip(groups, ok_g) if good for i in c.members}
+        )
     statuses = [
         ElementStatus(
             name=n,
@@ -277,24 +297,10 @@ def classify_elements(
 
 
 def group_weights(member_columns, other_columns) -> np.ndarray:
-    """The weights v (summing to 1) of a group's members in its fitted common factor phi.
-
-    With members' columns M = dr/d ln p_i (m, n_g) and the other fitted coordinates' columns O
-    (m, k), both in the fit's weights, a linear model r = M theta + O beta fitted with the
-    members tied (one column M 1) gives, by Frisch-Waugh-Lovell,
-
-        phi = v^T theta,    v = S 1 / (1^T S 1),    S = M_perp^T M_perp,
-
-    M_perp the members' columns with O projected out. To first order the group's estimate
-    p_0 e^phi is thus the weighted mean of its members' values relative to nominal,
-    sum_i v_i p_i / p_i0 (where the members are equal, that value). A spring's or damper's
-    force is linear in its coefficient, and the mean of the values, not of their logarithms, is
-    what a large change in one member follows (8 s detection benchmark, one of the two
-    secondary lateral dampers failed at 0.1: the group estimated at 0.51-0.58 in 7 cases, the
-    mean of values 0.55, of logarithms 0.32). The weights follow the members' share in the
-    data: mirror pairs weigh about 0.5 each, but when the detection benchmark's 1 s runs
-    judged the four primary lateral springs as one group, each spring of wheelset 2 weighed
-    0.31-0.50 and each of wheelset 1 0.003-0.19 (22 cases)."""
+    """The weights v (summing to 1) of a group's members in its common factor phi: with the
+    members' columns M (m, n_g) and the other coordinates' columns O, in the fit's weights,
+    phi = v^T theta, v = S 1 / (1^T S 1), S = M_perp^T M_perp, M_perp = M with O projected out
+    (Frisch-Waugh-Lovell): the estimate is the weighted mean sum_i v_i p_i / p_i0."""
     m = np.asarray(member_columns, dtype=float)
     o = np.asarray(other_columns, dtype=float)
     if o.size:

@@ -50,6 +50,9 @@ class HostFit:
     costs: tuple[float, ...] = ()
 
 
+DAMPING = 1e-3  # the initial lambda: the damping matrix is lambda diag(J^T J) (Marquardt)
+
+
 def levenberg_marquardt(
     evaluate,
     phi0,
@@ -60,64 +63,63 @@ def levenberg_marquardt(
     cost_tol: float = 1e-4,
     offset_tol: float = 1e-2,
     max_step: float = 1.0,
-    damping: float = 1e-3,
 ) -> HostFit:
     """Minimise 1/2 |r(phi)|^2 with `evaluate(phi) -> (r, J)` (numpy arrays).
 
     Stops when the largest step component is below `xtol` (in ln p: 1e-8 relative), the cost
-    falls by less than `ftol` times itself, or the undamped Gauss-Newton step promises a
-    decrease below `cost_tol` or has a relative offset below `offset_tol` (module docstring;
-    m: the residuals' length, 0 turns the rule off); `max_step` bounds each step's largest
-    component (ln p, a factor e); `damping`: the initial lambda. A non-finite cost at a trial
-    point counts as a rejected step.
+    falls by less than `ftol` times itself, or the Gauss-Newton step promises a decrease below
+    `cost_tol` or has a relative offset below `offset_tol` (module docstring; 0 turns a rule
+    off); `max_step` bounds each step's largest component (ln p: a factor e). A non-finite
+    cost at a trial point counts as a rejected step.
     """
     phi = np.asarray(phi0, dtype=float)
     r, jac = evaluate(phi)
-    evaluations = 1
-    cost = 0.5 * float(r @ r)
+    evaluations, cost = 1, 0.5 * float(r @ r)
     if not np.isfinite(cost) or not np.all(np.isfinite(jac)):
         return HostFit(phi, r, jac, cost, 0, evaluations, "failed")
-    h = jac.T @ jac
-    lam = damping  # dimensionless: the damping matrix is lam * diag(J^T J) (Marquardt scaling)
-    nu = 2.0
-    costs = [cost]
+    lam, nu, costs = DAMPING, 2.0, [cost]
     done = lambda step, status: HostFit(phi, r, jac, cost, step, evaluations, status, tuple(costs))
     for step in range(1, max_steps + 1):
-        gauss_newton = np.linalg.lstsq(jac, -r, rcond=None)[0]
-        explained = float(np.sum((jac @ gauss_newton) ** 2))  # |Q1^T r|^2
-        if (
-            0.5 * explained < cost_tol
-            or _relative_offset(explained, 2 * cost, r.size, phi.size) < offset_tol
-        ):
+        if _gauss_newton_done(r, jac, cost, cost_tol, offset_tol):
             return done(step - 1, "converged")
-        g = jac.T @ r
-        d = np.sqrt(np.maximum(np.diag(h), 1e-300))
-        aug = np.vstack([jac, np.sqrt(lam) * np.diag(d)])
-        rhs = np.concatenate([-r, np.zeros(phi.size)])
-        delta = np.linalg.lstsq(aug, rhs, rcond=None)[0]
-        biggest = float(np.max(np.abs(delta)))
-        if biggest > max_step:
-            delta *= max_step / biggest
+        delta, predicted = _damped_step(r, jac, lam, max_step)
         r_new, jac_new = evaluate(phi + delta)
         evaluations += 1
         cost_new = 0.5 * float(r_new @ r_new)
-        predicted = 0.5 * float(delta @ (lam * d**2 * delta - g))
         rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
         if np.isfinite(cost_new) and np.all(np.isfinite(jac_new)) and rho > 0:
             decrease = cost - cost_new
             phi, r, jac, cost = phi + delta, r_new, jac_new, cost_new
             costs.append(cost)
-            h = jac.T @ jac
-            lam *= max(1 / 3, 1 - (2 * rho - 1) ** 3)
-            nu = 2.0
+            lam, nu = lam * max(1 / 3, 1 - (2 * rho - 1) ** 3), 2.0
             if float(np.max(np.abs(delta))) < xtol or decrease <= ftol * cost:
                 return done(step, "converged")
         else:
-            lam *= nu
-            nu *= 2.0
-            if biggest < xtol or predicted < cost_tol:
+            lam, nu = lam * nu, nu * 2.0
+            if float(np.max(np.abs(delta))) < xtol or predicted < cost_tol:
                 return done(step, "converged")
     return done(max_steps, "max_steps")
+
+
+def _gauss_newton_done(r, jac, cost, cost_tol, offset_tol) -> bool:
+    """Whether the Gauss-Newton step from here promises a decrease below `cost_tol` or has a
+    relative offset below `offset_tol`."""
+    gauss_newton = np.linalg.lstsq(jac, -r, rcond=None)[0]
+    explained = float(np.sum((jac @ gauss_newton) ** 2))  # |Q1^T r|^2
+    offset = _relative_offset(explained, 2 * cost, r.size, jac.shape[1])
+    return 0.5 * explained < cost_tol or offset < offset_tol
+
+
+def _damped_step(r, jac, lam, max_step):
+    """The damped step (least squares on the stacked system), its largest component at most
+    `max_step`, and the decrease its linear model predicts."""
+    d = np.sqrt(np.maximum(np.diag(jac.T @ jac), 1e-300))
+    aug = np.vstack([jac, np.sqrt(lam) * np.diag(d)])
+    delta = np.linalg.lstsq(aug, np.concatenate([-r, np.zeros(d.size)]), rcond=None)[0]
+    biggest = float(np.max(np.abs(delta)))
+    if biggest > max_step:
+        delta *= max_step / biggest
+    return delta, 0.5 * float(delta @ (lam * d**2 * delta - jac.T @ r))
 
 
 def _relative_offset(explained: float, total: float, m: int, n: int) -> float:

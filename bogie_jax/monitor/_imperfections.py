@@ -78,12 +78,8 @@ def recorded_track(
 
 
 def with_speed_error(measurement: Measurement, error: float) -> Measurement:
-    """`measurement` stating the speed `speed * (1 + error)` [m/s] while its data ran at `speed`
-    (item 4b: a speed known to +-1 % is `error` in [-0.01, 0.01]). Data, times and the rest are
-    unchanged.
-
-    **Raises:** `ValueError` for an `error` that is not finite and > -1.
-    """
+    """`measurement` stating the speed `speed * (1 + error)` [m/s] (error finite, > -1) while
+    its data ran at `speed`; everything else unchanged."""
     if not (math.isfinite(error) and error > -1):
         raise ValueError(f"`error` = {error!r} must be finite and > -1 (a relative speed error)")
     speed = float(np.asarray(measurement.speed)) * (1.0 + error)
@@ -91,11 +87,8 @@ def with_speed_error(measurement: Measurement, error: float) -> Measurement:
 
 
 def channel_rms(measurements: Sequence[Measurement]) -> np.ndarray:
-    """RMS (about zero) of each channel over every sample of all `measurements` (one channel
-    list), missing samples (NaN) left out: shape (c,), in each channel's unit.
-
-    **Raises:** `ValueError` for no measurements or measurements with different channels.
-    """
+    """(c,) RMS about zero of each channel over all `measurements` (one channel list), NaN
+    samples left out."""
     measurements = _runs(measurements)
     data = np.concatenate([np.asarray(m.data, dtype=float) for m in measurements])
     return np.sqrt(np.nanmean(data**2, axis=0))
@@ -178,11 +171,8 @@ def with_channel_noise(
 
 
 def worn_wheels(params: BogieParams, factor: float) -> BogieParams:
-    """`params` with the wheel cone slope `contact.cone_slope` [-] times `factor` (item 4f:
-    worn wheels, up to 30 % off nominal is `factor` in [0.7, 1.3]); every other parameter kept.
-
-    **Raises:** `ValueError` for a `factor` that is not finite and > 0.
-    """
+    """`params` with the cone slope `contact.cone_slope` times `factor` (finite, > 0: worn
+    wheels), every other parameter kept."""
     if not (math.isfinite(factor) and factor > 0):
         raise ValueError(f"`factor` = {factor!r} must be finite and > 0")
     slope = float(np.asarray(get_parameter(params, "contact.cone_slope")))

@@ -112,10 +112,7 @@ class FitSummary:
 
     @property
     def explains_data(self) -> bool:
-        """False where `misfit_ratio` exceeds `MISFIT_LIMIT`: the fit leaves several times the
-        residual that the track records' error and the sensors' noise explain, the sign of a
-        wrong local minimum, and its verdicts are no verdicts (True without a `track_error`,
-        where nothing is known to compare with)."""
+        """False where `misfit_ratio` exceeds `MISFIT_LIMIT` (a wrong minimum), else True."""
         return not misfit_warning(self.misfit_ratio)
 
 

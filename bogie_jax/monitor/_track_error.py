@@ -110,6 +110,18 @@ def record_error(values, rms: float, semi_distance: float, rng, reference=None) 
 REFIT_STEPS = 2  # Gauss-Newton steps of each draw's refit (module docstring)
 
 
+@dataclasses.dataclass(frozen=True)
+class RecordError:
+    """The records' error model: RMS `rms` [m] in alignment and vertical level, cross level over
+    the contact distance 2 `semi_distance` [m] (module docstring); `draw` is `record_error`."""
+
+    rms: float
+    semi_distance: float
+
+    def draw(self, values, rng, reference=None) -> np.ndarray:
+        return record_error(values, self.rms, self.semi_distance, rng, reference)
+
+
 class TrackErrorEffect(NamedTuple):
     """The track records' error in the fitted coordinates (module docstring)."""
 
@@ -122,7 +134,7 @@ class TrackErrorEffect(NamedTuple):
 
 
 def track_error_effect(
-    evaluate_at, tracks, phi, *, rms, semi_distance, draws, refit_steps=REFIT_STEPS,
+    evaluate_at, tracks, phi, error: RecordError, *, draws, refit_steps=REFIT_STEPS,
     references=None, seed=0,
 ):  # fmt: skip
     """The `TrackErrorEffect` (module docstring) at the fit's estimate `phi` (n,).
@@ -130,7 +142,7 @@ def track_error_effect(
     - `evaluate_at(tracks, phi) -> (r (m,), J (m, n))`: the fit's residuals and Jacobian at
       the coordinates `phi` with these track records (in the fit's weights, projection and
       coordinates);
-    - `tracks`: the runs' `TrackIrregularity` records; `rms` [m], `semi_distance` b_0 [m];
+    - `tracks`: the runs' `TrackIrregularity` records; `error`: the `RecordError` model;
       `references`: the runs' `TrackReference`s or `None`s (`record_error`);
     - `draws` realisations from `numpy.random.default_rng(seed)`, each refitted by
       `refit_steps` (>= 1) Gauss-Newton steps; a draw whose residuals or Jacobian are not
@@ -151,7 +163,7 @@ def track_error_effect(
             TrackIrregularity(
                 t.s0,
                 t.ds,
-                np.asarray(t.values) + record_error(t.values, rms, semi_distance, rng, ref),
+                np.asarray(t.values) + error.draw(t.values, rng, ref),
             )
             for t, ref in zip(tracks, references)
         ]

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ._student_t import two_sided_p_value
+from ..identify import two_sided_p_value
 from ._verdict import ToleranceBand, check_false_alarm_rate
 
 

@@ -37,7 +37,8 @@ The reported 95 % interval is estimate +- t standard errors, independent of `alp
 0.975 quantile of Student's t with the standard error's effective degrees of freedom (`dof`;
 1.96 for an exactly known variance). `monitor` gives the Welch-Satterthwaite degrees of freedom
 of its track-record term, a Monte Carlo estimate from 16 draws that dominates its standard
-errors (`_student_t.py`): with 1.96 the intervals covered 93 % of 2000 true values in the
+errors (`bogie_jax.identify.satterthwaite_dof`): with 1.96 the intervals covered 93 % of 2000
+true values in the
 detection benchmark (88-97 % per element), with the t quantile 94 % (91-98 %). The decision
 level z stays the normal quantile (see the README's verdict rules for what that costs).
 """
@@ -46,7 +47,7 @@ import dataclasses
 import math
 from statistics import NormalDist
 
-from ._student_t import t_quantile
+from ..identify import t_quantile
 
 
 VERDICTS = ("healthy", "degraded", "failed", "not identifiable")
@@ -124,9 +125,7 @@ class Verdict:
 
     @property
     def watch(self) -> str | None:
-        """`"above"` or `"below"` where the 95 % interval lies wholly on that side of the
-        healthy band while no test rejected the band (verdict `healthy` or `not identifiable`:
-        module docstring); else `None`."""
+        """`"above"` or `"below"`: the element on watch (module docstring); else `None`."""
         return self.evidence.get("watch")
 
     def to_dict(self) -> dict:

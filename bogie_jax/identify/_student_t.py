@@ -1,15 +1,15 @@
 """Student's t distribution (tail probability and quantile) and Welch-Satterthwaite degrees of
-freedom, in plain Python for the verdict and trend rules (no scipy at run time).
+freedom, in plain Python (no scipy at run time): the one t quantile of the fits' intervals
+(`fit_statistics`) and of the monitor's verdict and trend rules.
 
 A standard error whose square is a sum of variance estimates, each with its own degrees of
 freedom nu_i, is treated as that of a Student's t statistic with the effective degrees of freedom
 
     nu = (sum_i v_i)^2 / sum_i (v_i^2 / nu_i)
 
-(Satterthwaite, Biometrics Bulletin 2 (1946) 110-114; Welch, Biometrika 34 (1947) 28-35). In
-`monitor` the track record's error term is the mean of `draws` Monte Carlo shifts
-(`_track_error.py`): a variance estimate with `draws` degrees of freedom, which dominates the
-standard errors wherever it is given.
+(Satterthwaite, Biometrics Bulletin 2 (1946) 110-114; Welch, Biometrika 34 (1947) 28-35), e.g.
+a residual variance with m - n degrees of freedom plus a Monte Carlo variance from `draws`
+realisations.
 """
 
 import math
