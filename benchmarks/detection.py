@@ -34,9 +34,9 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal,
 options=MonitorOptions(track_error=<the records' error RMS, --track-error>))`, default options
-otherwise): truth, verdicts, estimates (and, with a track error, the fitted values before its bias is removed),
-standard errors, 95 % intervals, fit status (with the horizon stages fitted and the
-misfit ratio, `FitSummary`), each run's fitted speed factor and track position against their
+otherwise): truth, verdicts, estimates (and, with a track error, the fitted values before its
+bias is removed), standard errors, 95 % intervals, fit status (with the horizon stages fitted
+and the misfit ratio, `FitSummary`), each run's fitted speed factor and track position against their
 true values, wall times; each finished case is appended as one line of
 `results/detection/<out>.jsonl` (per shard: `<out>.shard<i>of<n>.jsonl`) and a re-run skips
 the cases found there.
