@@ -277,3 +277,27 @@ def test_the_work_period_rule_catches_the_old_names():
         "multistart_vs_annealing",
     ):
         assert not names_a_work_period(name), name
+
+
+MONITOR_MAX_LINES = 60  # lines of a function in monitor/, its docstring included
+MONITOR_MAX_PARAMETERS = 8  # `self` and `cls` not counted
+
+
+def test_monitor_functions_are_short_steps_with_few_parameters():
+    """`bogie_jax/monitor/` stays a pipeline a reader follows (issue 52): no function or method
+    longer than 60 lines or with more than 8 parameters."""
+    over = []
+    for path in sorted((PACKAGE / "monitor").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            a = node.args
+            names = [
+                x.arg for x in (*a.posonlyargs, *a.args, *a.kwonlyargs, a.vararg, a.kwarg) if x
+            ]
+            n_params = len([n for n in names if n not in ("self", "cls")])
+            n_lines = node.end_lineno - node.lineno + 1
+            if n_lines > MONITOR_MAX_LINES or n_params > MONITOR_MAX_PARAMETERS:
+                where = f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"
+                over.append(f"{where}: {n_lines} lines, {n_params} parameters")
+    assert not over, "monitor/ functions over the limits:\n" + "\n".join(over)
