@@ -27,6 +27,13 @@ from ._lead_in import (
     window_lead_in as window_lead_in,
 )
 from ._make import make_objective as make_objective
+from ._noise import (
+    S2_FLOOR as S2_FLOOR,
+    RunChannels as RunChannels,
+    channel_variances as channel_variances,
+    channel_weights as channel_weights,
+    leverage as leverage,
+)
 from ._objective import Objective as Objective, ResidualModel as ResidualModel
 from ._rest_state import fixed_rest_state as fixed_rest_state
 from ._run_corrections import (
@@ -38,4 +45,16 @@ from ._selection import (
     ParameterSelection as ParameterSelection,
     get_parameter as get_parameter,
     select_parameters as select_parameters,
+)
+from ._statistics import (
+    COVARIANCES as COVARIANCES,
+    NOISE_MODELS as NOISE_MODELS,
+    AbstractCovariance as AbstractCovariance,
+    AbstractNoiseModel as AbstractNoiseModel,
+    EstimatedNoise as EstimatedNoise,
+    GaussNewtonCovariance as GaussNewtonCovariance,
+    MaxNoise as MaxNoise,
+    NominalNoise as NominalNoise,
+    PerChannelNoise as PerChannelNoise,
+    SandwichCovariance as SandwichCovariance,
 )

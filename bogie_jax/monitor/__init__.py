@@ -4,6 +4,23 @@
 params=..., options=MonitorOptions(...))`.
 """
 
+from ..cost import (  # the noise model and covariance rules, shared with identify
+    COVARIANCES as COVARIANCES,
+    NOISE_MODELS as NOISE_MODELS,
+    S2_FLOOR as S2_FLOOR,
+    AbstractCovariance as AbstractCovariance,
+    AbstractNoiseModel as AbstractNoiseModel,
+    EstimatedNoise as EstimatedNoise,
+    GaussNewtonCovariance as GaussNewtonCovariance,
+    MaxNoise as MaxNoise,
+    NominalNoise as NominalNoise,
+    PerChannelNoise as PerChannelNoise,
+    RunChannels as RunChannels,
+    SandwichCovariance as SandwichCovariance,
+    channel_variances as channel_variances,
+    channel_weights as channel_weights,
+    leverage as leverage,
+)
 from ..identify import (  # the one t distribution, re-exported for the verdict rules
     satterthwaite_dof as satterthwaite_dof,
     t_quantile as t_quantile,
@@ -63,25 +80,6 @@ from ._result import (
     MonitorResult as MonitorResult,
     RunStatus as RunStatus,
     misfit_warning as misfit_warning,
-)
-from ._robust import (
-    S2_FLOOR as S2_FLOOR,
-    RunChannels as RunChannels,
-    channel_variances as channel_variances,
-    channel_weights as channel_weights,
-    leverage as leverage,
-)
-from ._statistics import (
-    COVARIANCES as COVARIANCES,
-    NOISE_MODELS as NOISE_MODELS,
-    AbstractCovariance as AbstractCovariance,
-    AbstractNoiseModel as AbstractNoiseModel,
-    EstimatedNoise as EstimatedNoise,
-    GaussNewtonCovariance as GaussNewtonCovariance,
-    MaxNoise as MaxNoise,
-    NominalNoise as NominalNoise,
-    PerChannelNoise as PerChannelNoise,
-    SandwichCovariance as SandwichCovariance,
 )
 from ._track_error import (
     RecordError as RecordError,

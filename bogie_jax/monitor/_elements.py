@@ -25,10 +25,8 @@ the sensors' nominal noise), computed by `bogie_jax.cost.covariance_from_jacobia
    the runs separate parts of a group but not their members, the group is split: of the
    partitions of its members into two or more parts of two or more members, the one with the
    most parts whose every part passes both tests (the other groups whole), the parts' largest
-   se / limit breaking ties. E.g. the primary lateral springs of the detection benchmark's 8 s
-   runs: the difference between the wheelsets' springs has a relative standard error of
-   0.06-0.08 %, the one between left and right 12-17 % (3 cases), so the verdicts name
-   `primary.{1L,1R}.ky` and `primary.{2L,2R}.ky`.
+   se / limit breaking ties: e.g. `primary.{1L,1R}.ky` and `primary.{2L,2R}.ky` where the runs
+   separate the wheelsets' springs but not left from right.
    A group's estimate measures a weighted mean of its members, which the verdict reports
    (`group_weights`).
 3. Everything else is **not identifiable**: held at its nominal value in the fit.

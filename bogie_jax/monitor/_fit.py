@@ -9,12 +9,12 @@ import dataclasses
 
 import numpy as np
 
+from ..cost import channel_variances, channel_weights
 from ._checks import failed_runs
 from ._elements import classify_elements, group_weights
 from ._horizon import horizon_stages, window_rows
 from ._host_fit import HostFit, levenberg_marquardt
 from ._program import FitSpace, JointProgram
-from ._robust import channel_variances, channel_weights
 from ._verdict import decision_z
 
 
@@ -110,10 +110,10 @@ class Reweighted:
 
 
 def reweight(space: FitSpace, fit: HostFit, say) -> Reweighted:
-    """Each run-channel's residual variance estimated from `fit` (`_robust.channel_variances`)
-    and, for a noise model that reweights, the fit repeated from its estimate with the rows
-    weighted by 1 / sqrt of it, up to `REWEIGHTS` times, until no weight changes by more than
-    `SETTLED`; a failed refit keeps the last fit and its weights."""
+    """Each run-channel's residual variance estimated from `fit`
+    (`bogie_jax.cost.channel_variances`) and, for a noise model that reweights, the fit repeated
+    from its estimate with the rows weighted by 1 / sqrt of it, up to `REWEIGHTS` times, until
+    no weight changes by more than `SETTLED`; a failed refit keeps the last fit and weights."""
     o = space.program.problem.options
     w = np.ones((space.program.problem.n_runs, space.program.problem.n_channels))
     done = Reweighted(space, fit, (), None, w, 0)

@@ -4,40 +4,20 @@ second and doubles the span it fits until it covers the whole record.
 Why: each run's speed is fitted as a nuisance factor (`_nuisance.py`). A speed wrong by a
 fraction e places the track record e v t wrong at time t, so the cost of a record of duration T
 oscillates in the speed factor with a period of about lambda / (v T) for the track's shortest
-wavelengths lambda: the longer the record, the narrower the basin of the right factor. With
-8 s runs at 30-60 m/s and speeds known to +-1 % (up to 4.8 m of drift), 5 of 19 single-start
-fits from the stated speed stopped in a wrong minimum (case 5 of the detection benchmark: a
-speed factor of 0.9962 against the true 1.0085, its position offset at the 1 m bound, residual
-variance 5083 times the sensors' noise against 29-238 in the good fits), while over 200 cases
-of 1 s runs (at most 0.6 m of drift) none did.
+wavelengths lambda: the longer the record, the narrower the basin of the right factor, and a
+single fit of a long record from the stated speed can stop in a wrong minimum.
 
 Method: a continuation (homotopy) in the observation horizon. Fit the samples within `start`
 seconds of each run's first sample, then within 2 `start`, 4 `start`, ..., each stage starting
-from the previous estimate, and finally the whole record. The idea is that each stage fixes
-the speed factor well enough for the drift over twice its horizon to stay inside the right
-basin (the same cost structure is why multiple shooting is preferred to single shooting for
-long records: Bock, in *Numerical Treatment of Inverse Problems in Differential and Integral
-Equations*, Birkhaeuser 1983, 95-121); `benchmarks/detection.py` measures whether it does. The
-rows beyond the horizon get zero weight and the sensor bias is estimated over the rows fitted;
-the simulation still covers the whole run, so nothing is compiled again. A record no longer
-than `start` is fitted in one stage, as before.
-
-A stage stops at a Bates-Watts relative offset of 0.3 (`_monitor.STAGE_OFFSET_TOL`; the last
-fit keeps 0.01): it only has to reach the next stage's basin. On the detection benchmark's
-case 5 (8 s) both gave the same final cost to 4 digits; the stages took 16 evaluations of the
-residual Jacobian against 24 with 0.01. Each evaluation simulates the whole record, so the
-stages cost about as many whole-record evaluations as they take: the fit of case 5 took 158 s
-against 48 s for the single fit (2-core CPU, two cases at once).
-
-Measured (2026-11-27, 2-core CPU): detection cases 5 (left anti-yaw damper failed) and 18
-(healthy) with 8 s runs, which the single fit had got wrong: the continuation found the true
-speed factors (to 1.5e-4) and positions (to 4 cm), residual variance 191 and 93 (was 5083 and
-3611), and the right verdicts (the damper `failed`, 5.9 kN s/m for 4; no alarm on the healthy
-bogie). On all 19 cases that the single fit had run (`benchmarks/README.md`, "8 s runs with
-the fit continued over the horizon"): every fit used both runs (the single fit had left one out
-in 5 cases) and found the speed factors to 3.6e-4 and the positions to 5.2 cm; the verdicts
-were right in all 19 (12 defects, 7 healthy), against 10 cases with wrong verdicts or a run
-left out before. tests/test_monitor.py shows it on a 0.5 s record with an 8 % speed error.
+from the previous estimate, and finally the whole record: each stage fixes the speed factor
+well enough for the drift over twice its horizon to stay inside the right basin (the cost
+structure for which multiple shooting is preferred to single shooting on long records: Bock, in
+*Numerical Treatment of Inverse Problems in Differential and Integral Equations*, Birkhaeuser
+1983, 95-121). The rows beyond the horizon get zero weight and the sensor bias is estimated
+over the rows fitted; the simulation still covers the whole run, so nothing is compiled again.
+A record no longer than `start` is fitted in one stage. A stage stops at a Bates-Watts relative
+offset of 0.3 (`_fit.STAGE_OFFSET_TOL`; the last fit keeps 0.01): it only has to reach the next
+stage's basin. `benchmarks/detection.py` measures the whole (docs/benchmarks.md).
 """
 
 import math
@@ -45,7 +25,7 @@ import math
 import numpy as np
 
 
-HORIZON_START = 1.0  # [s]: the first stage's span (1 s runs: no wrong minimum in 200 cases)
+HORIZON_START = 1.0  # [s]: the first stage's span
 
 
 def horizon_stages(durations, start: float | None = HORIZON_START) -> tuple[float, ...]:

@@ -23,8 +23,8 @@ the Bates-Watts relative offset
 falls below `offset_tol` (1e-2: the step still to take is under 0.01 sqrt(n) standard errors of
 the estimates as the residuals themselves measure them; Bates & Watts, Technometrics 23 (1981)
 179; the rule of `bogie_jax.identify.LevenbergMarquardt`). The second rule keeps the first's
-meaning where the misfit is many times the sensors' noise (an imperfect track record: residual
-variance 100-250 times the sensors' in the detection benchmark), and both keep the jitter of
+meaning where the misfit is many times the sensors' noise (an imperfect track record), and
+both keep the jitter of
 the cost that the ODE solver's own tolerance causes (rtol 1e-6) from costing a series of
 rejected steps.
 """

@@ -1,4 +1,4 @@
-"""What real data get wrong (issue 19, item 4), as functions that spoil synthetic data or the
+"""What real data get wrong, as functions that spoil synthetic data or the
 information a fit is given, one imperfection each, for benchmarks and demos:
 
 - (a) `recorded_track`: the fit's track is a recording car's measurement of the true one
@@ -41,7 +41,7 @@ BIAS_REFERENCES = ("rms", "noise_std")
 def recorded_track(
     reference: TrackReference, *, noise: float, offset: float, semi_distance: float
 ) -> TrackIrregularity:
-    """The synthetic track of `reference` as a recording car measures it (item 4a).
+    """The synthetic track of `reference` as a recording car measures it.
 
     The record is the true irregularity plus a recording error, positioned `offset` [m] wrong
     along the track: the record's irregularity at distance s is the true one at s + offset
@@ -97,8 +97,8 @@ def channel_rms(measurements: Sequence[Measurement]) -> np.ndarray:
 def with_sensor_bias(
     measurements: Sequence[Measurement], fraction: ArrayLike, *, relative_to: str = "rms"
 ) -> tuple[Measurement, ...]:
-    """`measurements` with a constant bias added to each channel, the same on every run (item
-    4c); the sensor layout is unchanged, so a fit is not told of the bias.
+    """`measurements` with a constant bias added to each channel, the same on every run;
+    the sensor layout is unchanged, so a fit is not told of the bias.
 
     Bias of channel c = `fraction[c]` times, with `relative_to="rms"`, the channel's RMS over all
     runs (`channel_rms`), or, with `"noise_std"`, the `noise_std` of its sensor in the layout.
@@ -137,7 +137,7 @@ def with_channel_noise(
 
     - `declared=True`: the sensor layout states these noise levels (each sensor's `noise_std`
       set to its channel's level), so a fit weights every channel right;
-    - `declared=False` (item 4e): the layout keeps the sensors' nominal `noise_std`, so weights
+    - `declared=False`: the layout keeps the sensors' nominal `noise_std`, so weights
       1 / noise_std^2 that assume it are wrong by the ratio of the levels.
 
     `fraction`: a number (every channel) or one number per channel, each >= 0; 0.02 is noise
@@ -182,7 +182,7 @@ def worn_wheels(params: BogieParams, factor: float) -> BogieParams:
 def nonlinear_options(
     *, creep_saturation: bool = True, nonlinear_dampers: bool = True, flange_contact: bool = False
 ) -> ModelOptions:
-    """The `ModelOptions` of nonlinear data (item 4d): creep saturation (Shen-Hedrick-Elkins)
+    """The `ModelOptions` of nonlinear data: creep saturation (Shen-Hedrick-Elkins)
     and blow-off anti-yaw dampers on by default, flange contact off (`ModelOptions`). Simulate
     the data with them and fit with the default `ModelOptions()`."""
     return ModelOptions(

@@ -7,13 +7,13 @@ The steps, each a function that takes what the last one returned:
    at the nominal bogie, which gives the Fisher information; a run whose simulation fails
    there is left out;
 3. `_fit.select_elements`: the identifiability rule (`_elements.py`) on the Jacobian with the
-   sensor bias (`_robust.py`) and the nuisance columns (`_nuisance.py`) profiled out: elements
-   alone, groups, or not identifiable;
+   sensor bias (`bogie_jax.cost.RunChannels`) and the nuisance columns (`_nuisance.py`)
+   profiled out: elements alone, groups, or not identifiable;
 4. `_fit.fit_runs`: a Levenberg-Marquardt fit (`_host_fit.py`) of the identifiable coordinates
    with every nuisance parameter, over growing horizons (`_horizon.py`), repeated without a run
    the fit cannot explain (`_checks.failed_runs`);
 5. `_fit.reweight`: each run-channel's noise estimated and the fit reweighted, by the noise
-   model (`_statistics.py`);
+   model (`bogie_jax.cost.AbstractNoiseModel`);
 6. `_judgement.track_record_term`: the track records' error term and bias (`_track_error.py`);
 7. `_judgement.statistics` and `judge_*`: the covariance by the covariance rule, a verdict per
    coordinate (`_verdict.judge`, profile tests by `_profile.py`);

@@ -1,4 +1,4 @@
-"""What `monitor` fits but never judges (issue 19, item 4 (a), (b), (f)): nuisance parameters.
+"""What `monitor` fits but never judges: nuisance parameters.
 
 - **Run corrections** (`run_corrections=True`): each run's position on its track record
   [m] and its speed factor (`bogie_jax.cost.CorrectedObjective`: run k is simulated from
@@ -6,14 +6,9 @@
   irregularity at s is the true one at s + d (`recorded_track(..., offset=d)`) is matched by
   position_offset = -d; a speed stated as (1 + e) times the true one by a factor 1 / (1 + e).
 - **Nuisance parameters** (`nuisance`, e.g. `("contact.cone_slope",)` for worn wheels; default
-  none), fitted on log scale like the candidates. Why not the cone slope by default (measured
-  2026-11-23 on the demo case: left anti-yaw damper at 50 %, 2 runs of 0.5 s at 30 and
-  50 m/s, sensor noise, a track record with 0.3 mm RMS recording error 0.1 m off): the cone
-  slope absorbs the recording error (fitted 0.039-0.041 for a true 0.05) and, together with
-  the run corrections, widens the damper's interval until it is `not identifiable` (estimate
-  1.59e5 +- 3.5e4 N s/m, truth 2e5); with the run corrections alone the damper is `degraded`,
-  1.91e5 +- 2.4e4. On exact records the cone slope of worn wheels (1.3 x nominal) is
-  recovered to 1e-5 (tests/test_monitor.py).
+  none), fitted on log scale like the candidates. The cone slope is not fitted by default: on
+  a track record with a recording error it absorbs part of that error and, with the run
+  corrections, widens the elements' intervals (docs/monitoring.md).
 
 The compiled program differentiates r with respect to x = [theta (candidates, then nuisance
 parameters), position_offset (R), log_speed_factor (R)]. The host LM fits v = [phi (the
@@ -29,14 +24,8 @@ projected orthogonally to every nuisance column, J_eff = (I - P_N) J_c, P_N = J_
 (J_eff^T J_eff)^+ is the candidates' block of (J^T J)^+, the information on them with the
 nuisance unknown (`bogie_jax.cost.CorrectedObjective.profile_jacobian` does the same for the
 run corrections alone). The covariance of the estimates is the judged block of the full
-covariance of v (Gauss-Newton: the same matrix; the sandwich of the profiled Jacobian differs
-through its per-component prewhitening: tried on the data of
-tests/test_monitor.py's imperfect-data case it gave a 15 % larger damper standard error, so
-the full one is used).
-
-Cost (measured 2026-11-23 on the shared 2-core machine, demo case, cold): the compile and
-first evaluation of the residual-Jacobian program took 55.6-58.6 s CPU with the 16 candidates
-alone and 58.8-59.9 s CPU with the 4 run corrections (67-70 s with the cone slope too).
+covariance of v (Gauss-Newton: the same matrix; the sandwich of the profiled Jacobian would
+differ through its per-component prewhitening, so the full one is used).
 """
 
 import dataclasses

@@ -4,13 +4,7 @@ import dataclasses
 import math
 
 from .._validation import check_number, check_positive_int, check_range
-from ..params import ModelOptions
-from ..runtime.solve_settings import SolveSettings
-from ._checks import RUN_MISFIT
-from ._elements import MAX_CORRELATION, RESOLUTION
-from ._horizon import HORIZON_START
-from ._nuisance import DEFAULT_NUISANCE
-from ._statistics import (
+from ..cost import (
     COVARIANCES,
     NOISE_MODELS,
     AbstractCovariance,
@@ -19,6 +13,12 @@ from ._statistics import (
     PerChannelNoise,
     SandwichCovariance,
 )
+from ..params import ModelOptions
+from ..runtime.solve_settings import SolveSettings
+from ._checks import RUN_MISFIT
+from ._elements import MAX_CORRELATION, RESOLUTION
+from ._horizon import HORIZON_START
+from ._nuisance import DEFAULT_NUISANCE
 
 
 def _names(value) -> tuple[str, ...] | None:
@@ -39,10 +39,11 @@ class MonitorOptions:
       probability of any false alarm (`judge`).
     - `noise`: an `AbstractNoiseModel` (default `PerChannelNoise()`); `covariance`: an
       `AbstractCovariance`, or `None`: `SandwichCovariance()`, or `GaussNewtonCovariance()`
-      where `track_error` models the misfit the sandwich is there for (`_statistics.py`).
-    - `remove_bias`: a constant sensor bias per run and channel is eliminated (`_robust.py`);
-      `run_corrections`: each run's position on its record and speed factor are fitted, and
-      `nuisance`: parameter names fitted but never judged (`_nuisance.py`).
+      where `track_error` models the misfit the sandwich is there for (`bogie_jax.cost`).
+    - `remove_bias`: a constant sensor bias per run and channel is eliminated
+      (`bogie_jax.cost.RunChannels`); `run_corrections`: each run's position on its record and
+      speed factor are fitted, and `nuisance`: parameter names fitted but never judged
+      (`_nuisance.py`).
     - `resolution`, `max_correlation` in (0, 1]: the identifiability rule (`_elements.py`).
     - `max_steps`: Levenberg-Marquardt steps per fit; `horizon_start` [s] (> 0, or `None`): a
       longer record is fitted over growing spans (`_horizon.py`); `run_misfit` (> 0): the rule

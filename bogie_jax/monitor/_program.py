@@ -8,7 +8,7 @@ fit, the profile tests and the track record's realisations, whatever records or 
 
 `FitSpace` maps the fitted coordinates v to x = B v (`_nuisance.NuisanceLayout.matrix`), keeps
 the rows within the fitted horizon (`_horizon.py`), removes the sensor bias by the projection
-of `_robust.RunChannels.centre` and weights the rows (`rows`): `evaluate(v)` is the (r, J) a
+of `bogie_jax.cost.RunChannels.centre` and weights the rows (`rows`): `evaluate(v)` is the (r, J) a
 Levenberg-Marquardt fit of v needs. Both are values: a changed run set, horizon or weighting
 is a new object.
 """
@@ -20,12 +20,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..cost import make_joint_objective, residual_jacobian
+from ..cost import RunChannels, make_joint_objective, residual_jacobian
 from ..params import BogieParams
 from ..runtime.solve_settings import SolveSettings
 from ._nuisance import NuisanceLayout
 from ._options import MonitorOptions
-from ._robust import RunChannels
 
 
 _JACOBIAN = eqx.filter_jit(residual_jacobian)

@@ -46,9 +46,8 @@ class RunStatus:
     corrected: bool = False
 
 
-# [-]: a larger `FitSummary.misfit_ratio` marks a fit that misses the data. Measured
-# 2026-11-27 on the detection benchmark with 8 s runs: 0.74-1.19 in 19 fits in the right
-# minimum, 9.6 and 55.8 in two fits stopped in a wrong one (benchmarks/README.md).
+# [-]: a larger `FitSummary.misfit_ratio` marks a fit that misses the data (about 1 at the
+# right minimum, many times that at a wrong one: docs/monitoring.md)
 MISFIT_LIMIT = 3.0
 
 

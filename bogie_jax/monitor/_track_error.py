@@ -1,12 +1,11 @@
-"""The track record's error as a model-error term of the estimates' covariance (issue 19,
-item 4a).
+"""The track record's error as a model-error term of the estimates' covariance, its bias, and
+the residual it should leave.
 
 The fit takes a recording car's measurement of the track as the true track. The record's
 error (about 0.3 mm RMS per channel) moves the estimates by a fixed amount per run, and most
 of that shift lies in the span of the Jacobian, where the residuals do not show it: the
-sandwich covariance, estimated from the residuals, misses it. With longer records the standard
-errors shrink but this shift does not (detection benchmark: 95 % coverage 90 % with 1 s runs,
-87 % with 2 s).
+sandwich covariance, estimated from the residuals, misses it, and with longer records the
+standard errors shrink while this shift does not.
 
 Model: the error of each channel of a record is a random process, scaled to RMS `rms` [m] in
 alignment and vertical level and `rms / (2 b_0)` [rad] in cross level (a level error of `rms`
@@ -14,16 +13,9 @@ on each rail over the contact distance 2 b_0); the runs' errors are independent
 (`record_error`). Where the run names a synthetic `TrackReference`, a realisation is that
 reference's synthesis with a new seed: its spectrum, wavelength band and fades (a recording
 error shaped like the track is what `recorded_track` simulates). Otherwise it is the record
-with its Fourier phases drawn at random (uniform; the amplitude spectrum kept). The record's
-own spectrum is one realisation's, not the process's: over a short record its few long-wave
-bins set the RMS, so the share of the shorter waves that drive the bogie differs from the
-expected one by up to a factor of 3 (two 112 m records of the detection benchmark's 1 s runs,
-5-10 m waves: 0.03 and 0.12 of the vertical level's power, 0.04-0.05 in the synthesis's
-realisations), and its draws are stationary where the synthesis fades in over the first 20 m,
-a third or more of a 1 s run. On the detection benchmark's 100 cases at 1 s, the bias
-removed with draws of the record's spectrum left the primary springs +0.5 to +0.7 standard
-errors high on average, with the synthesis's draws -0.2 to -0.05 (`benchmarks/README.md`). A
-measured error spectrum would replace both.
+with its Fourier phases drawn at random (uniform; the amplitude spectrum kept): over a short
+record its few long-wave bins set the RMS, so its share of the shorter waves can differ from
+the process's. A measured error spectrum would replace both.
 
 Propagation, to first order at the fit's end: the error e shifts the estimates by
 `dv = -J^+ (r(record + e) - r(record))` (J and r in the fitted coordinates, with the fit's
@@ -34,30 +26,22 @@ sqrt(2 / draws)); each draw is one evaluation of the compiled residual Jacobian.
 Bias (errors in the input variables): a record with error carries more irregularity than the
 track, and the fit absorbs part of it by stiffening the model's response; the estimates are
 biased by an amount of second order in the error, which the first-order shift above (mean zero)
-does not show. Measured on the detection benchmark (100 cases, 1 s runs, 0.3 mm): the anti-yaw
-dampers came out +0.8 standard errors high on average (coverage 85 %), the primary vertical
-springs -0.3. It is removed by simulation-extrapolation (SIMEX: Cook and Stefanski, J. Am.
+does not show. It is removed by simulation-extrapolation (SIMEX: Cook and Stefanski, J. Am.
 Stat. Assoc. 89 (1994) 1314-1328; Carroll et al., *Measurement Error in Nonlinear Models*, 2nd
 ed. 2006, ch. 5) with one added level: each draw refits the record plus a second error of the
 same variance by `refit_steps` Gauss-Newton steps from the fit's estimate, and the mean of the
 refits' shifts is the bias at the record's own error level (bias linear in the error variance:
 2 sigma^2 - sigma^2 = sigma^2), subtracted from the estimates. A single step is linear in the
-shift, while the bias is of second order: where the shift is large the step misses part of it
-(measured with draws of the record's own spectrum: on the demo's 1 s runs the worn damper's
-bias was +0.8 % after one step, -2.1 % after two, -3.1 % after three; on 8 s runs, 4 cases,
-the second step moved every bias by at most 0.1 standard errors, the third by 0.01). The mean
-of `draws` shifts adds `1 / draws` of the term's variance to a corrected estimate's. `monitor`
-removes it only from well-determined element coordinates (`_monitor._corrected`).
+shift while the bias is of second order, hence two steps by default. The mean of `draws` shifts
+adds `1 / draws` of the term's variance to a corrected estimate's. `monitor` removes it only
+from well-determined element coordinates (`_judgement.estimate_of`).
 
 Misfit (a goodness-of-fit yardstick): the part of a draw's residual change outside the span of
 J, `(I - J J^+)(r(record + e) - r(record))`, is what a record's error leaves in the residuals
 after the fit has absorbed what it can; the mean of its squared norm over the draws is the
 residual sum of squares the records' error should leave at a fit in the right minimum (to first
 order). `monitor` reports the fit's residual sum of squares over it plus the sensors' noise
-(`FitSummary.misfit_ratio`): 0.74-1.19 over 19 detection cases with 8 s runs, 9.6 and 55.8 at
-two wrong minima (draws of the record's spectrum). One realisation of a short record's error
-varies more: 0.17 on the demo's 0.5 s runs; over the 100 detection cases with 1 s runs, 0.21-1.28
-(median 0.63) with draws of the record's spectrum, 0.53-1.64 (median 0.87) with the synthesis's.
+(`FitSummary.misfit_ratio`): about 1 at the right minimum.
 """
 
 import dataclasses

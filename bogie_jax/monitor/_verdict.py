@@ -12,8 +12,7 @@ Decision rule (documented in the README, "Verdict rules"):
   of its estimate: with a `profile` (`monitor` gives one: `_profile.py`), the signed root of
   the profile likelihood-ratio statistic at L exceeds z; it is computed where the Wald
   statistic at L, in p or in ln p, reaches z / 2 (below that, neither Wald test is near
-  rejecting and the profile is not fitted: in the detection benchmark's 76 converged held fits
-  the profile statistic was at most 1.03 times the larger Wald statistic). The nearer limit
+  rejecting and the profile is not fitted). The nearer limit
   is tested first: an element beyond its failure limit is beyond its band's edge as well (the
   profile likelihood falls monotonically away from the estimate). Without a profile (or
   where its fit failed or did not converge: its statistic is then only an upper bound), the
@@ -36,11 +35,9 @@ Decision rule (documented in the README, "Verdict rules"):
 The reported 95 % interval is estimate +- t standard errors, independent of `alpha`: t the
 0.975 quantile of Student's t with the standard error's effective degrees of freedom (`dof`;
 1.96 for an exactly known variance). `monitor` gives the Welch-Satterthwaite degrees of freedom
-of its track-record term, a Monte Carlo estimate from 16 draws that dominates its standard
-errors (`bogie_jax.identify.satterthwaite_dof`): with 1.96 the intervals covered 93 % of 2000
-true values in the
-detection benchmark (88-97 % per element), with the t quantile 94 % (91-98 %). The decision
-level z stays the normal quantile (see the README's verdict rules for what that costs).
+of its residual and track-record terms (`bogie_jax.identify.satterthwaite_dof`): the track
+term is a Monte Carlo estimate from a few draws. The decision level z stays the normal quantile
+(docs/monitoring.md says what that costs).
 """
 
 import dataclasses

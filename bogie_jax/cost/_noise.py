@@ -1,5 +1,6 @@
-"""What `monitor` does to residuals that real data make imperfect (issue 19, items 4c and 4e):
-host-side numpy on the residuals r and Jacobian J that the one compiled program returns.
+"""The noise model of a fit on the host: a sensor bias removed and each channel's noise level
+estimated (numpy on the residuals r and Jacobian J of a compiled program), for `monitor` and
+`bogie_jax.identify` alike.
 
 **Sensor bias** (a constant per run and channel the fit is not told): a linear nuisance
 parameter b_kc, eliminated by variable projection (Golub & Pereyra, SIAM J. Numer. Anal. 10

@@ -1,11 +1,12 @@
-"""The noise model and the covariance rule of a fit: strategy objects, chosen by value.
+"""The noise model and the covariance rule of a fit (`monitor` and `bogie_jax.identify`): strategy
+objects, chosen by value.
 
 A **noise model** says how the rows are weighted and which residual variance sigma^2 scales the
 Gauss-Newton covariance; s2 = 2 S / (m - n - b) is the variance of the fit's weighted residuals
 (S = 1/2 |r|^2, m residuals, n fitted coordinates, b bias parameters):
 
 - `PerChannelNoise` (the default): every run-channel's noise variance is estimated from the
-  fit's residuals and the fit repeated with those weights (`_robust.channel_weights`); sigma^2 = s2
+  fit's residuals and the fit repeated with those weights (`channel_weights`); sigma^2 = s2
   of the reweighted fit;
 - with the sensors' stated `noise_std` as weights: `NominalNoise` (sigma^2 = 1, an exactly known
   variance), `EstimatedNoise` (s2) and `MaxNoise` (the larger of both).
@@ -27,14 +28,14 @@ from typing import ClassVar
 
 import equinox as eqx
 
-from ..cost import (
+from ._covariance import (
     Covariance,
     covariance_from_jacobian,
     long_run_covariance,
     sandwich_covariance,
     score_series,
 )
-from ._robust import RunChannels
+from ._noise import RunChannels
 
 
 class AbstractNoiseModel(eqx.Module):
