@@ -94,7 +94,7 @@ def trend_chart(series) -> str:
     """One element's estimates and 95 % intervals over dates (`_trends.ElementTrend`), with its
     healthy band and, where fitted, the trend line."""
     pts = [p for p in series.points if p[1] is not None]
-    w, h, pad = 300, 150, 34
+    w, h, pad = 350, 150, 34
     lo, hi = series.band.healthy
     values = [lo, hi] + [v for p in pts for v in p[1:4] if v is not None]
     vmin, vmax = min(values), max(values)
@@ -114,7 +114,7 @@ def trend_chart(series) -> str:
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" class="chart trend" width="{w}" '
              f'height="{h}" role="img" aria-label="{escape(title)}">',
              f"<title>{escape(title)}</title>",
-             f'<text x="4" y="12">{escape(title)}</text>',
+             f'<text x="4" y="12" font-size="10">{escape(title)}</text>',
              f'<rect x="{pad}" y="{y(hi):.1f}" width="{w - pad - 8}" height="{y(lo) - y(hi):.1f}" '
              'fill="#e3f1e6"/>']  # fmt: skip
     if t is not None:
