@@ -40,7 +40,7 @@ def make_fleet(folder: Path, n: int) -> Path:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from bogie_jax.fleet._synthetic import SyntheticBogie, write_synthetic_fleet
+    from bogie_jax.fleet import SyntheticBogie, write_synthetic_fleet
 
     bogies = [SyntheticBogie(f"bogie-{k:02d}", SCENARIOS[k % len(SCENARIOS)]) for k in range(n)]
     return write_synthetic_fleet(folder, bogies, candidates=CANDIDATES)

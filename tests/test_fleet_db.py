@@ -22,10 +22,11 @@ import sqlalchemy as sa
 
 from bogie_jax.cli import main
 from bogie_jax.fleet import (
+    MIGRATIONS,
+    Migration,
     SchemaError,
     StoreError,
-    _migrations,
-    _schema,
+    current_version,
     latest_version,
     open_store,
 )
@@ -146,13 +147,13 @@ def test_a_judgement_is_stored_with_its_verdicts_and_fit(db_url):
 
 def _set_version(store, version):
     with store.engine.begin() as c:
-        c.execute(sa.update(_schema.schema_version).values(version=version))
+        c.execute(sa.text("UPDATE schema_version SET version = :v"), {"v": version})
 
 
 def test_a_new_database_gets_the_latest_schema_and_a_newer_one_is_refused(db_url, capsys):
     store = _store(db_url)
     with store.engine.connect() as c:
-        assert _migrations.current_version(c) == latest_version()
+        assert current_version(c) == latest_version()
     _set_version(store, latest_version() + 1)
     before = store.counts()
     with pytest.raises(SchemaError, match="newer than this bogie-jax"):
@@ -164,9 +165,9 @@ def test_a_new_database_gets_the_latest_schema_and_a_newer_one_is_refused(db_url
     assert store.counts() == before
 
 
-def test_an_older_database_is_migrated_and_keeps_its_rows(db_url, monkeypatch):
+def test_an_older_database_is_migrated_and_keeps_its_rows(db_url):
     """The mechanism, with a second step added for the test: a v1 database with a judgement is
-    brought to v2 in one transaction; its rows stay."""
+    brought to v2 in one transaction and keeps its rows; this code (v1) then refuses it."""
     store = _store(db_url)
     store.write_judgement(record("2026-11-01"), bogie_id="b1", date="2026-11-01",
                           vehicle="manchester", layout="default", run_id=None)  # fmt: skip
@@ -174,14 +175,14 @@ def test_an_older_database_is_migrated_and_keeps_its_rows(db_url, monkeypatch):
     def add_note(connection):
         connection.execute(sa.text("ALTER TABLE judgements ADD COLUMN note TEXT"))
 
-    step = _migrations.Migration(2, "a note per judgement", add_note)
-    monkeypatch.setattr(_migrations, "MIGRATIONS", (*_migrations.MIGRATIONS, step))
-    with pytest.raises(StoreError, match="found version 1"):  # a reader needs the latest
-        open_store(db_url, create=False)
-    assert _store(db_url, migrate=False).migrate() == 2
+    steps = (*MIGRATIONS, Migration(2, "a note per judgement", add_note))
+    assert store.migrate(steps) == 2
     with store.engine.connect() as c:
-        assert _migrations.current_version(c) == 2
+        assert current_version(c) == 2
         assert c.execute(sa.text("SELECT bogie_id, note FROM judgements")).all() == [("b1", None)]
+    assert store.migrate(steps) == 2  # nothing left to do
+    with pytest.raises(SchemaError, match="schema version 2, newer"):
+        open_store(db_url, create=True)
 
 
 def test_a_missing_or_unreachable_database_is_one_line_and_nothing_is_made(tmp_path):

@@ -175,7 +175,7 @@ def test_a_six_bogie_fleet_on_two_dask_workers_and_its_page_in_chromium(tmp_path
     """Six synthetic bogies (two half-second runs each, four candidates), judged on a local
     Dask cluster of two workers; the page in headless chromium lists exactly the alarms of the
     three defective bogies. Two workers each compile the monitor programs once."""
-    from bogie_jax.fleet._synthetic import SyntheticBogie, write_synthetic_fleet
+    from bogie_jax.fleet import SyntheticBogie, write_synthetic_fleet
 
     chromium()  # before the minutes of fitting
     bogies = [SyntheticBogie(i, s, d) for i, s, d in SIX]

@@ -18,8 +18,15 @@ import distributed  # noqa: F401  (its config defaults loaded before `dask.confi
 import pytest
 
 from bogie_jax.cli import main
-from bogie_jax.fleet import DaskEngine, SerialEngine, open_store, read_inventory, run_fleet
-from bogie_jax.fleet._synthetic import SyntheticBogie, write_synthetic_fleet
+from bogie_jax.fleet import (
+    DaskEngine,
+    SerialEngine,
+    SyntheticBogie,
+    open_store,
+    read_inventory,
+    run_fleet,
+    write_synthetic_fleet,
+)
 
 
 TESTS = pathlib.Path(__file__).resolve().parent

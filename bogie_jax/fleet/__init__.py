@@ -17,7 +17,13 @@ from ._inventory import (
     InventoryError as InventoryError,
     read_inventory as read_inventory,
 )
-from ._migrations import SchemaError as SchemaError, latest_version as latest_version
+from ._migrations import (
+    MIGRATIONS as MIGRATIONS,
+    Migration as Migration,
+    SchemaError as SchemaError,
+    current_version as current_version,
+    latest_version as latest_version,
+)
 from ._page import fleet_page as fleet_page, write_fleet_page as write_fleet_page
 from ._run import (
     FleetSummary as FleetSummary,
@@ -25,6 +31,11 @@ from ._run import (
     run_fleet as run_fleet,
 )
 from ._store import FleetStore as FleetStore, open_store as open_store
+from ._synthetic import (
+    SHORT_RUNS as SHORT_RUNS,
+    SyntheticBogie as SyntheticBogie,
+    write_synthetic_fleet as write_synthetic_fleet,
+)
 from ._task import JudgeTask as JudgeTask, Outcome as Outcome
 from ._trends import ElementTrend as ElementTrend, element_trends as element_trends
 from ._url import StoreError as StoreError

@@ -46,8 +46,9 @@ MIGRATIONS: tuple[Migration, ...] = (
 _LOCK_KEY = 0x0B0A1E  # PostgreSQL advisory lock of the migrations
 
 
-def latest_version() -> int:
-    return MIGRATIONS[-1].version
+def latest_version(steps=MIGRATIONS) -> int:
+    """The version `steps` (default: this code's migrations) lead to."""
+    return steps[-1].version
 
 
 def current_version(connection: sa.Connection) -> int:
@@ -58,27 +59,28 @@ def current_version(connection: sa.Connection) -> int:
     return int(value or 0)
 
 
-def check_version(connection: sa.Connection, where: str) -> int:
-    """The version, after refusing one newer than this code knows (`SchemaError`)."""
+def check_version(connection: sa.Connection, where: str, steps=MIGRATIONS) -> int:
+    """The version, after refusing one newer than `steps` lead to (`SchemaError`)."""
     version = current_version(connection)
-    if version > latest_version():
+    if version > latest_version(steps):
         raise SchemaError(
             f"database {where} has schema version {version}, newer than this bogie-jax's "
-            f"{latest_version()}: upgrade bogie-jax (nothing was written)"
+            f"{latest_version(steps)}: upgrade bogie-jax (nothing was written)"
         )
     return version
 
 
-def migrate(engine: sa.Engine, where: str) -> int:
-    """Bring the database to `latest_version()` in one transaction; returns the version."""
+def migrate(engine: sa.Engine, where: str, steps=MIGRATIONS) -> int:
+    """Bring the database to `latest_version(steps)` in one transaction; returns the version.
+    `steps`: this code's `MIGRATIONS` (a test passes more, to exercise an upgrade)."""
     with engine.begin() as connection:
         if connection.dialect.name == "postgresql":
             connection.execute(sa.text("SELECT pg_advisory_xact_lock(:k)"), {"k": _LOCK_KEY})
-        version = check_version(connection, where)
+        version = check_version(connection, where, steps)
         if version == 0:
             _schema.schema_version.create(connection, checkfirst=True)
             connection.execute(sa.insert(_schema.schema_version).values(version=0))
-        for step in MIGRATIONS:
+        for step in steps:
             if step.version > version:
                 step.apply(connection)
                 connection.execute(sa.update(_schema.schema_version).values(version=step.version))

@@ -10,7 +10,7 @@ import sqlalchemy as sa
 
 from . import _schema as s
 from ._code_version import code_version
-from ._migrations import check_version, latest_version, migrate
+from ._migrations import MIGRATIONS, check_version, latest_version, migrate
 from ._rows import fit_row, judgement_row, verdict_rows
 from ._url import StoreError, database_url, make_engine, safe, sqlite_file
 
@@ -115,9 +115,9 @@ class FleetStore:
             return {t.name: int(c.execute(sa.select(sa.func.count()).select_from(t)).scalar())
                     for t in tables}  # fmt: skip
 
-    def migrate(self) -> int:
+    def migrate(self, steps=MIGRATIONS) -> int:
         """Bring the database to the latest schema (`_migrations.py`); returns the version."""
-        return migrate(self.engine, self.where)
+        return migrate(self.engine, self.where, steps)
 
     def close(self) -> None:
         """Close every pooled connection."""
