@@ -9,7 +9,11 @@
    varied +-20 %) through `runtime.batch.batch_runner`: on one device, sharded over the 2 CPU
    cores, against a Python loop of single jitted solves. Throughputs as ratios from one run.
 
-Run: `python benchmarks/forward.py` (writes results/forward/jax_vs_scipy_and_batch.{json,md}).
+3. `--contact`: the same single run with the S1002/UIC60 1:40 contact table (issue 49) against
+   the cone: median time, compile time apart, steps, and the time ratio (target <= 1.5).
+
+Run: `python benchmarks/forward.py` (writes results/forward/jax_vs_scipy_and_batch.{json,md});
+`python benchmarks/forward.py --contact` prints the contact-table case (writes nothing).
 """
 
 import os
@@ -228,5 +232,27 @@ def main():
     )
 
 
+def contact_case():
+    """10 s at 50 m/s on the ERRI-low track: cone vs the S1002/UIC60 1:40 table (printed)."""
+    track = synthesise_track(
+        ERRIB176Spectrum.low(), key=jr.PRNGKey(0), length=SPEED * DURATION + 100
+    )
+    rows = {}
+    for contact in ("cone", "s1002-uic60"):
+        out, median, compile_s = jax_single(bj.manchester_benchmark(contact=contact), track)
+        rows[contact] = (median, compile_s, int(out.num_steps))
+        print(
+            f"{contact:12s} median {median:.3f} s  compile {compile_s:.1f} s  steps {out.num_steps}"
+        )
+    (cone, _, cone_steps), (table, _, table_steps) = rows["cone"], rows["s1002-uic60"]
+    print(
+        f"time ratio table/cone: {table / cone:.2f} (steps ratio {table_steps / cone_steps:.2f}, "
+        f"time per step ratio {(table / table_steps) / (cone / cone_steps):.2f})"
+    )
+
+
 if __name__ == "__main__":
-    main()
+    if "--contact" in sys.argv:
+        contact_case()
+    else:
+        main()

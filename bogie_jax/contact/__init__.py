@@ -40,6 +40,11 @@ from ._profile import (
     read_profile as read_profile,
     write_csv as write_csv,
 )
+from ._profile_geometry import (
+    QUANTITIES as QUANTITIES,
+    ProfileGeometry as ProfileGeometry,
+    profile_geometry as profile_geometry,
+)
 from ._search import (
     COLUMNS as COLUMNS,
     ContactTable as ContactTable,

@@ -6,10 +6,13 @@ import jax.numpy as jnp
 from ..contact import (
     ConeGeometry,
     CreepCoefficients,
+    ProfileGeometry,
     cone_geometry,
     cone_on_rail_curvatures,
     creep_coefficients,
     hertz_contact,
+    named_contact_table,
+    profile_geometry,
 )
 from ..params import BogieParams
 from ._layout import GRAVITY
@@ -18,8 +21,9 @@ from ._layout import GRAVITY
 class ModelConstants(eqx.Module):
     """Derived constants of the bogie model.
 
-    - `geometry`: cone-on-circular-rail coefficients lambda, sigma, epsilon, zeta, xi
-      (reference doc 1.2).
+    - `geometry`: the contact geometry strategy, chosen by `params.contact_geometry`: the
+      cone-on-circular-rail coefficients lambda, sigma, epsilon, zeta, xi (`ConeGeometry`,
+      reference doc 1.2) or a profile pair's interpolated contact table (`ProfileGeometry`).
     - `primary_preload` [N]: static vertical force of each primary spring,
       (m_frame + m_carbody) g / 4.
     - `secondary_preload` [N]: static vertical force of each secondary spring, m_carbody g / 2.
@@ -29,7 +33,7 @@ class ModelConstants(eqx.Module):
       from the nominal curvatures (reference doc 2, 3), times `contact.creep_factor`.
     """
 
-    geometry: ConeGeometry
+    geometry: ConeGeometry | ProfileGeometry
     primary_preload: jnp.ndarray
     secondary_preload: jnp.ndarray
     static_normal_load: jnp.ndarray
@@ -42,16 +46,22 @@ def model_constants(params: BogieParams) -> ModelConstants:
     once per program as `accelerations`)."""
     c = params.contact
     m = params.masses
-    geometry = cone_geometry(
-        c.wheel_radius, c.contact_semi_distance, c.cone_slope, c.rail_head_radius
-    )
+    if params.contact_geometry == "cone":
+        geometry = cone_geometry(
+            c.wheel_radius, c.contact_semi_distance, c.cone_slope, c.rail_head_radius
+        )
+    else:  # a named profile pair: its table, built once per process outside the trace
+        geometry = profile_geometry(named_contact_table(params.contact_geometry))
     primary_preload = (m.frame.mass + m.carbody_mass) * GRAVITY / 4
     secondary_preload = m.carbody_mass * GRAVITY / 2
     vertical_wheel_load = (m.wheelset.mass * GRAVITY + 2 * primary_preload) / 2
     normal_load = vertical_wheel_load / jnp.cos(geometry.cone_angle)
-    curv_a, curv_b = cone_on_rail_curvatures(
-        c.wheel_radius, geometry.cone_angle, c.rail_head_radius
-    )
+    if isinstance(geometry, ProfileGeometry):
+        curv_a, curv_b = geometry.hertz_curvatures[0], geometry.hertz_curvatures[1]
+    else:
+        curv_a, curv_b = cone_on_rail_curvatures(
+            c.wheel_radius, geometry.cone_angle, c.rail_head_radius
+        )
     patch = hertz_contact(normal_load, curv_a, curv_b, c.young_modulus, c.poisson_ratio)
     shear_modulus = c.young_modulus / (2 * (1 + c.poisson_ratio))
     creep = creep_coefficients(patch.a, patch.b, shear_modulus, c.poisson_ratio)

@@ -5,10 +5,16 @@ bogie at constant speed v. Wheelset 1 (leading) sits at x = +a, wheelset 2 at x 
 Per-wheelset functions take the wheelset's lateral displacement `y` [m], yaw `psi` [rad] and the
 track irregularity under it, `w` (3,): alignment d_y [m], vertical level d_z [m], cross level
 gamma_d [rad]. e0 is HALF the distance between the contact points (the paper uses the full one).
+
+The contact geometry is a strategy (`ModelConstants.geometry`): a `ConeGeometry` gives the linear
+laws of paper eq. 2-5 (this code path is unchanged); a `ProfileGeometry` gives the same
+quantities as smooth functions of y_rel read from a profile pair's contact table (radii, contact
+angles and contact positions per wheel, roll, centre height), with the yaw term of eq. 2 kept.
 """
 
 import jax.numpy as jnp
 
+from ..contact import ProfileGeometry
 from ..params import BogieParams
 from ._constants import ModelConstants
 from ._rotations import cardan_zyx, cardan_zyx_rates, yaw_roll
@@ -50,10 +56,23 @@ def relative_lateral(y, w, r0):
     return y - w[0] + r0 * w[2]
 
 
+def is_profile(const: ModelConstants) -> bool:
+    """Whether the contact geometry is a profile table (a trace-time fact)."""
+    return isinstance(const.geometry, ProfileGeometry)
+
+
+def profile_terms(y, w, params: BogieParams, const: ModelConstants):
+    """The table's quantities (values, d/dy, d2/dy2), each (8, ...), at y_rel (`QUANTITIES`)."""
+    return const.geometry.evaluate(relative_lateral(y, w, params.contact.wheel_radius))
+
+
 def height(y, psi, w, params: BogieParams, const: ModelConstants):
     """Rise of the wheelset centre above r0 [m], paper eq. 2."""
     g = const.geometry
     r0 = params.contact.wheel_radius
+    if is_profile(const):
+        rise = profile_terms(y, w, params, const)[0][7]
+        return w[1] - 0.5 * r0 * w[2] ** 2 + rise - 0.5 * g.vertical_yaw_coefficient * psi**2
     y_rel = relative_lateral(y, w, r0)
     return (
         w[1]
@@ -66,17 +85,30 @@ def height(y, psi, w, params: BogieParams, const: ModelConstants):
 def height_gradient(y, psi, w, params: BogieParams, const: ModelConstants):
     """Gradient of `height` with respect to (y, psi) [m/m, m/rad], shape (2,)."""
     g = const.geometry
+    if is_profile(const):
+        slope = profile_terms(y, w, params, const)[1][7]
+        return jnp.stack([slope, -g.vertical_yaw_coefficient * psi])
     y_rel = relative_lateral(y, w, params.contact.wheel_radius)
     return jnp.stack([g.vertical_lateral_coefficient * y_rel, -g.vertical_yaw_coefficient * psi])
 
 
 def roll_slope(params: BogieParams, const: ModelConstants):
-    """d(roll)/dy [rad/m] of paper eq. 3."""
+    """d(roll)/dy [rad/m] of paper eq. 3 (cone: a constant)."""
     return const.geometry.roll_coefficient / params.contact.contact_semi_distance
+
+
+def roll_slope_at(y, w, params: BogieParams, const: ModelConstants):
+    """d(roll)/dy [rad/m] at the wheelset's lateral displacement `y` (the cone's constant, or
+    the slope of the profile table's roll)."""
+    if is_profile(const):
+        return profile_terms(y, w, params, const)[1][6]
+    return roll_slope(params, const)
 
 
 def roll(y, w, params: BogieParams, const: ModelConstants):
     """Wheelset roll angle [rad], paper eq. 3."""
+    if is_profile(const):
+        return w[2] + profile_terms(y, w, params, const)[0][6]
     y_rel = relative_lateral(y, w, params.contact.wheel_radius)
     return w[2] + roll_slope(params, const) * y_rel
 
@@ -87,8 +119,12 @@ def rotation(y, psi, w, params, const):
     return yaw_roll(jnp.cos(psi), jnp.sin(psi), jnp.cos(phi), jnp.sin(phi))
 
 
-def roll_rate(yd, wd, params: BogieParams, const: ModelConstants):
-    """Time derivative of `roll` [rad/s] for the lateral rate `yd` [m/s] and track rates `wd`."""
+def roll_rate(yd, wd, params: BogieParams, const: ModelConstants, y=None, w=None):
+    """Time derivative of `roll` [rad/s] for the lateral rate `yd` [m/s] and track rates `wd`
+    (a profile table needs the position `y`, `w` too)."""
+    if is_profile(const):
+        slope = roll_slope_at(y, w, params, const)
+        return wd[2] + slope * relative_lateral(yd, wd, params.contact.wheel_radius)
     return wd[2] + roll_slope(params, const) * relative_lateral(yd, wd, params.contact.wheel_radius)
 
 
@@ -96,6 +132,14 @@ def height_rate(y, psi, yd, psid, w, wd, params: BogieParams, const: ModelConsta
     """Time derivative of `height` (eq. 2) [m/s]."""
     g = const.geometry
     r0 = params.contact.wheel_radius
+    if is_profile(const):
+        slope = profile_terms(y, w, params, const)[1][7]
+        return (
+            wd[1]
+            - r0 * w[2] * wd[2]
+            + slope * relative_lateral(yd, wd, r0)
+            - g.vertical_yaw_coefficient * psi * psid
+        )
     return (
         wd[1]
         - r0 * w[2] * wd[2]
@@ -113,7 +157,7 @@ def angular_velocity(y, psi, yd, psid, w, wd, params, const, spin):
     """Angular velocity [rad/s] with the constant spin `spin` = v/r0 about the axle:
     psi_dot e_z + phi_dot Rz(psi) e_x + spin Rz(psi) Rx(phi) e_y."""
     phi = roll(y, w, params, const)
-    phi_rate = roll_rate(yd, wd, params, const)
+    phi_rate = roll_rate(yd, wd, params, const, y, w)
     c, s, c_phi = jnp.cos(psi), jnp.sin(psi), jnp.cos(phi)
     return jnp.stack(
         [
@@ -127,6 +171,8 @@ def angular_velocity(y, psi, yd, psid, w, wd, params, const, spin):
 def rolling_radii(y, w, params: BogieParams, const: ModelConstants):
     """Rolling radii (left, right) r = r0 +- lambda y_rel [m], paper eq. 4."""
     r0 = params.contact.wheel_radius
+    if is_profile(const):
+        return profile_terms(y, w, params, const)[0][0:2]
     return r0 + const.geometry.conicity * relative_lateral(y, w, r0) * SIDES
 
 
@@ -138,9 +184,13 @@ def contact_normals(y, w, params: BogieParams, const: ModelConstants):
     """
     e0 = params.contact.contact_semi_distance
     y_rel = relative_lateral(y, w, params.contact.wheel_radius)
-    slope = (
-        params.contact.cone_slope + const.geometry.contact_angle_coefficient / e0 * y_rel * SIDES
-    )
+    if is_profile(const):
+        slope = profile_terms(y, w, params, const)[0][2:4]
+    else:
+        slope = (
+            params.contact.cone_slope
+            + const.geometry.contact_angle_coefficient / e0 * y_rel * SIDES
+        )
     cos_delta = 1.0 / jnp.sqrt(1.0 + slope**2)  # cos(arctan(slope)), sin = slope cos
     local_y, local_z = -SIDES * slope * cos_delta, cos_delta
     c, s = jnp.cos(w[2]), jnp.sin(w[2])  # Rx(gamma_d) (0, local_y, local_z)
@@ -148,8 +198,12 @@ def contact_normals(y, w, params: BogieParams, const: ModelConstants):
 
 
 def contact_offsets(y, psi, w, params: BogieParams, const: ModelConstants):
-    """Contact points relative to the centre [m], R_w (0, +-e0, -r) (2 sides, 3)."""
+    """Contact points relative to the centre [m], R_w (0, +-e0, -r) (2 sides, 3); a profile
+    table gives the lateral positions (e_left, e_right) of the contact on the wheels."""
     e0 = params.contact.contact_semi_distance
     radii = rolling_radii(y, w, params, const)
     rot = rotation(y, psi, w, params, const)  # R (0, +-e0, -r) = +-e0 R e_y - r R e_z
+    if is_profile(const):
+        lateral = profile_terms(y, w, params, const)[0][4:6]
+        return lateral[:, None] * rot[:, 1] - radii[:, None] * rot[:, 2]
     return (SIDES * e0)[:, None] * rot[:, 1] - radii[:, None] * rot[:, 2]

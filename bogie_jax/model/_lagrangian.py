@@ -59,28 +59,16 @@ def wheelset_terms(p, pd, w, wd, wdd, params: BogieParams, const: ModelConstants
     z = height(y, psi, w) (eq. 2), phi = roll(y, w) (eq. 3); `spin` = v / r0 [rad/s];
     w, wd, wdd: the track input (alignment, level, cross level) and its time derivatives.
     """
-    g = const.geometry
     ws = params.masses.wheelset
-    r0 = params.contact.wheel_radius
-    c_lat, c_yaw = g.vertical_lateral_coefficient, g.vertical_yaw_coefficient
-    k_roll = kin.roll_slope(params, const)  # d phi / d y
-    y, psi = p[0], p[1]
-    y_dot, psi_dot = pd[0], pd[1]
-    y_rel = kin.relative_lateral(y, w, r0)
-    y_rel_dot = kin.relative_lateral(y_dot, wd, r0)
-    y_rel_ddot0 = -wdd[0] + r0 * wdd[2]  # d^2 y_rel / dt^2 at y_ddot = 0
-    # z (eq. 2): dz/dp and z_ddot at p_ddot = 0
-    dz = kin.height_gradient(y, psi, w, params, const)
-    z_ddot0 = (
-        wdd[1]
-        - r0 * (wd[2] ** 2 + w[2] * wdd[2])
-        + c_lat * (y_rel_dot**2 + y_rel * y_rel_ddot0)
-        - c_yaw * psi_dot**2
-    )
-    # roll (eq. 3): phi_dot and phi_ddot at p_ddot = 0
-    phi = kin.roll(y, w, params, const)
-    phi_dot = wd[2] + k_roll * y_rel_dot
-    phi_ddot0 = wdd[2] + k_roll * y_rel_ddot0
+    psi_dot = pd[1]
+    if kin.is_profile(const):
+        dz, z_ddot0, phi, phi_dot, phi_ddot0, k_roll = _profile_constraint_terms(
+            p, pd, w, wd, wdd, params, const
+        )
+    else:
+        dz, z_ddot0, phi, phi_dot, phi_ddot0, k_roll = _cone_constraint_terms(
+            p, pd, w, wd, wdd, params, const
+        )
     s, c = jnp.sin(phi), jnp.cos(phi)
     omega_y = spin + s * psi_dot
     omega_z = c * psi_dot
@@ -104,3 +92,53 @@ def wheelset_terms(p, pd, w, wd, wdd, params: BogieParams, const: ModelConstants
         - ws.izz * s * phi_dot * (omega_z + c * psi_dot)
     )
     return mass, jnp.stack([h_y, h_psi])
+
+
+def _cone_constraint_terms(p, pd, w, wd, wdd, params, const):
+    """dz/dp, z_ddot and phi, phi_dot, phi_ddot at p_ddot = 0, d phi/dy of the cone's linear laws
+    (eq. 2-3: z = ... + zeta y_rel^2 / 2 - xi psi^2 / 2, phi = gamma_d + (sigma / e0) y_rel)."""
+    g = const.geometry
+    r0 = params.contact.wheel_radius
+    c_lat, c_yaw = g.vertical_lateral_coefficient, g.vertical_yaw_coefficient
+    k_roll = kin.roll_slope(params, const)  # d phi / d y
+    y, psi = p[0], p[1]
+    y_dot, psi_dot = pd[0], pd[1]
+    y_rel = kin.relative_lateral(y, w, r0)
+    y_rel_dot = kin.relative_lateral(y_dot, wd, r0)
+    y_rel_ddot0 = -wdd[0] + r0 * wdd[2]  # d^2 y_rel / dt^2 at y_ddot = 0
+    dz = kin.height_gradient(y, psi, w, params, const)
+    z_ddot0 = (
+        wdd[1]
+        - r0 * (wd[2] ** 2 + w[2] * wdd[2])
+        + c_lat * (y_rel_dot**2 + y_rel * y_rel_ddot0)
+        - c_yaw * psi_dot**2
+    )
+    phi = kin.roll(y, w, params, const)
+    phi_dot = wd[2] + k_roll * y_rel_dot
+    phi_ddot0 = wdd[2] + k_roll * y_rel_ddot0
+    return dz, z_ddot0, phi, phi_dot, phi_ddot0, k_roll
+
+
+def _profile_constraint_terms(p, pd, w, wd, wdd, params, const):
+    """The same terms for a profile table: z = ... + Z(y_rel) - xi psi^2 / 2, phi = gamma_d +
+    Phi(y_rel); with y_rel varying, z_ddot and phi_ddot gain Z'' y_rel_dot^2, Phi'' y_rel_dot^2
+    (the chain rule; the cone's Z'' = zeta, Phi'' = 0)."""
+    g = const.geometry
+    r0 = params.contact.wheel_radius
+    psi, y_dot, psi_dot = p[1], pd[0], pd[1]
+    value, slope, curvature = kin.profile_terms(p[0], w, params, const)
+    y_rel_dot = kin.relative_lateral(y_dot, wd, r0)
+    y_rel_ddot0 = -wdd[0] + r0 * wdd[2]
+    dz = jnp.stack([slope[7], -g.vertical_yaw_coefficient * psi])
+    z_ddot0 = (
+        wdd[1]
+        - r0 * (wd[2] ** 2 + w[2] * wdd[2])
+        + curvature[7] * y_rel_dot**2
+        + slope[7] * y_rel_ddot0
+        - g.vertical_yaw_coefficient * psi_dot**2
+    )
+    k_roll = slope[6]
+    phi = w[2] + value[6]
+    phi_dot = wd[2] + k_roll * y_rel_dot
+    phi_ddot0 = wdd[2] + curvature[6] * y_rel_dot**2 + k_roll * y_rel_ddot0
+    return dz, z_ddot0, phi, phi_dot, phi_ddot0, k_roll

@@ -100,10 +100,14 @@ def generalised_forces(
     wt, wdt = w.T, wd.T  # (3, 2): alignment, level, cross level per wheelset
     y_rel = kin.relative_lateral(y, wt, r0)
     y_rel_dot = kin.relative_lateral(y_dot, wdt, r0)
-    dz_dy = geo.vertical_lateral_coefficient * y_rel
+    if kin.is_profile(const):  # slopes of the table's centre height and roll at y_rel
+        _, slopes, _ = geo.evaluate(y_rel)
+        dz_dy, k_roll = slopes[7], slopes[6]
+    else:
+        dz_dy = geo.vertical_lateral_coefficient * y_rel
+        k_roll = kin.roll_slope(params, const)
     dz_dpsi = -geo.vertical_yaw_coefficient * psi
     z_dot = wdt[1] - r0 * wt[2] * wdt[2] + dz_dy * y_rel_dot + dz_dpsi * psi_dot
-    k_roll = kin.roll_slope(params, const)
     phi_dot = wdt[2] + k_roll * y_rel_dot
     x = axle_positions(params)
     centres = jax.vmap(kin.centre, in_axes=(0, 0, 0, 0, None, None))(y, psi, w, x, params, const)

@@ -116,7 +116,7 @@ def contact_generalised_forces(
         [
             total[1]
             + dz[0] * total[2]
-            + kin.roll_slope(params, const) * jnp.sum(roll_axis * moment),
+            + kin.roll_slope_at(p[0], w, params, const) * jnp.sum(roll_axis * moment),
             dz[1] * total[2] + moment[2],
         ]
     )

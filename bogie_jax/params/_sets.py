@@ -21,8 +21,18 @@ from ._groups import (
 )
 
 
-def manchester_benchmark() -> BogieParams:
-    """Manchester benchmark vehicle 1 bogie (reference doc 5.1) with a 1:20 conical wheel."""
+def manchester_benchmark(contact: str = "cone") -> BogieParams:
+    """Manchester benchmark vehicle 1 bogie (reference doc 5.1).
+
+    `contact`: `"cone"` (default) a 1:20 conical wheel on a 0.3 m rail head; `"s1002-uic60"`
+    the Manchester Contact Benchmark's new S1002 wheel on UIC60 inclined 1:40, gauge 1435 mm,
+    flange-back spacing 1360 mm (its contact table replaces the cone's geometry; the `contact`
+    fields keep the material data and r0); `"worn-uic60"` a measured worn wheel on that rail.
+    """
+    if contact not in ("cone", "s1002-uic60", "worn-uic60"):
+        raise ValueError(
+            f"unknown contact {contact!r}; choose 'cone', 's1002-uic60' or 'worn-uic60'"
+        )
     return BogieParams(
         masses=Masses(
             frame=BodyInertia(mass=2615.0, ixx=1722.0, iyy=1476.0, izz=3067.0),
@@ -41,6 +51,7 @@ def manchester_benchmark() -> BogieParams:
         primary=PrimarySuspension(kx=31.391e6, ky=3.884e6, kz=1.22e6, cx=15e3, cy=2e3, cz=4e3),
         secondary=SecondarySuspension(kx=160e3, ky=160e3, kz=430e3, cy=32e3, cz=20e3),
         yaw_dampers=YawDampers(c=400e3, blowoff_velocity=0.015, c_blowoff=10e3),
+        contact_geometry=contact,
     )
 
 

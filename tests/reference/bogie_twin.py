@@ -141,6 +141,7 @@ class TwinConstants:
     f11: float
     f22: float
     f23: float
+    table: object = None  # a profile contact table (`reference.twin_table.TwinTable`) or None
 
     @classmethod
     def from_params(cls, params, derived=None) -> TwinConstants:
@@ -154,6 +155,13 @@ class TwinConstants:
         m, g, c = params.masses, params.geometry, params.contact
         p, s, yd = params.primary, params.secondary, params.yaw_dampers
         geo, creep = derived.geometry, derived.creep
+        table = None
+        if not hasattr(geo, "conicity"):  # a profile table: the twin reads the same table
+            try:
+                from reference.twin_table import TwinTable
+            except ImportError:  # tests/ imported as a package
+                from tests.reference.twin_table import TwinTable
+            table = TwinTable(geo)
 
         def per(x, n):
             return np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy()
@@ -188,10 +196,10 @@ class TwinConstants:
             c_yd=per(yd.c, 2),
             v_blowoff=per(yd.blowoff_velocity, 2),
             c_blowoff=per(yd.c_blowoff, 2),
-            lam=f(geo.conicity),
-            sigma=f(geo.roll_coefficient),
-            eps=f(geo.contact_angle_coefficient),
-            zeta=f(geo.vertical_lateral_coefficient),
+            lam=np.nan if table else f(geo.conicity),
+            sigma=np.nan if table else f(geo.roll_coefficient),
+            eps=np.nan if table else f(geo.contact_angle_coefficient),
+            zeta=np.nan if table else f(geo.vertical_lateral_coefficient),
             xi=f(geo.vertical_yaw_coefficient),
             delta0=f(geo.cone_angle),
             f_p=_equal_free_length_loads(k_p[:, 2], load_p),
@@ -200,6 +208,7 @@ class TwinConstants:
             f11=f(creep.f11),
             f22=f(creep.f22),
             f23=f(creep.f23),
+            table=table,
         )
 
 
@@ -228,6 +237,7 @@ class _WheelsetPose:
     rot: np.ndarray  # R_i = Rz(psi) Rx(phi)
     axis_x: np.ndarray  # Rz(psi) e_x: direction of the roll rate
     axle: np.ndarray  # e_a = R_i e_y
+    table: tuple | None = None  # profile table (values, d/dy, d2/dy2) at y_rel, or None (cone)
 
 
 @dataclass
@@ -307,8 +317,13 @@ class BogieTwin:
             d_y, d_z, gamma = w[i]
             y, psi = q[6 + i], q[8 + i]
             y_rel = y - d_y + k.r0 * gamma
-            u_z = d_z - k.r0 * gamma**2 / 2 + k.zeta * y_rel**2 / 2 - k.xi * psi**2 / 2
-            phi = gamma + (k.sigma / k.e0) * y_rel
+            table = None if k.table is None else k.table(y_rel)
+            if table is None:
+                u_z = d_z - k.r0 * gamma**2 / 2 + k.zeta * y_rel**2 / 2 - k.xi * psi**2 / 2
+                phi = gamma + (k.sigma / k.e0) * y_rel
+            else:  # centre height Z(y_rel) (index 7) and roll Phi(y_rel) (index 6) of the table
+                u_z = d_z - k.r0 * gamma**2 / 2 + table[0][7] - k.xi * psi**2 / 2
+                phi = gamma + table[0][6]
             rzi = rot_z(psi)
             rot = rzi @ rot_x(phi)
             wheelsets.append(
@@ -324,6 +339,7 @@ class BogieTwin:
                     rot=rot,
                     axis_x=rzi[:, 0],
                     axle=rot[:, 1],
+                    table=table,
                 )
             )
         return _Pose(
@@ -334,6 +350,13 @@ class BogieTwin:
             b_yaw=E_Z,
             wheelsets=tuple(wheelsets),
         )
+
+    def _slopes(self, ws: _WheelsetPose):
+        """d(u_z)/d(y_rel) and d(phi)/d(y_rel) of a wheelset: cone laws or the profile table."""
+        k = self.k
+        if ws.table is None:
+            return k.zeta * ws.y_rel, k.sigma / k.e0
+        return ws.table[1][7], ws.table[1][6]
 
     def velocities(self, pose: _Pose, qd: np.ndarray, wd: np.ndarray, *, spin: bool = True):
         """Body velocities for (a batch of) q_dot, shape (..., 10).
@@ -352,13 +375,11 @@ class BogieTwin:
             d_y_dot, d_z_dot, gamma_dot = wd[i]
             y_dot, psi_dot = qd[..., 6 + i], qd[..., 8 + i]
             y_rel_dot = y_dot - d_y_dot + k.r0 * gamma_dot
+            dz_dy, dphi_dy = self._slopes(ws)
             u_z_dot = (
-                d_z_dot
-                - k.r0 * ws.gamma * gamma_dot
-                + k.zeta * ws.y_rel * y_rel_dot
-                - k.xi * ws.psi * psi_dot
+                d_z_dot - k.r0 * ws.gamma * gamma_dot + dz_dy * y_rel_dot - k.xi * ws.psi * psi_dot
             )
-            phi_dot = gamma_dot + (k.sigma / k.e0) * y_rel_dot
+            phi_dot = gamma_dot + dphi_dy * y_rel_dot
             c_dot = np.stack([np.zeros_like(y_dot), y_dot, u_z_dot], axis=-1)
             om = psi_dot[..., None] * E_Z + phi_dot[..., None] * ws.axis_x
             if spin:
@@ -396,14 +417,17 @@ class BogieTwin:
             y_ddot, psi_ddot = qdd[..., 6 + i], qdd[..., 8 + i]
             y_rel_dot = y_dot - d_y_dot + k.r0 * gamma_dot
             y_rel_ddot = y_ddot - d_y_ddot + k.r0 * gamma_ddot
+            dz_dy, dphi_dy = self._slopes(ws)
+            d2z, d2phi = (k.zeta, 0.0) if ws.table is None else (ws.table[2][7], ws.table[2][6])
             u_z_ddot = (
                 d_z_ddot
                 - k.r0 * (gamma_dot**2 + ws.gamma * gamma_ddot)
-                + k.zeta * (y_rel_dot**2 + ws.y_rel * y_rel_ddot)
+                + d2z * y_rel_dot**2
+                + dz_dy * y_rel_ddot
                 - k.xi * (psi_dot**2 + ws.psi * psi_ddot)
             )
-            phi_dot = gamma_dot + (k.sigma / k.e0) * y_rel_dot
-            phi_ddot = gamma_ddot + (k.sigma / k.e0) * y_rel_ddot
+            phi_dot = gamma_dot + dphi_dy * y_rel_dot
+            phi_ddot = gamma_ddot + d2phi * y_rel_dot**2 + dphi_dy * y_rel_ddot
             a_c = np.stack([np.zeros_like(y_ddot), y_ddot, u_z_ddot], axis=-1)
             # omega = psi_dot e_z + phi_dot axis_x + Omega axle,
             # axis_x = Rz(psi) e_x turns with psi_dot e_z, axle = R_i e_y with omega_R
@@ -539,12 +563,16 @@ class BogieTwin:
             moment_part = (k.b_p / (2 * k.e0)) * (v_l - v_r)
             rx_track = rot_x(ws.gamma)
             for side, sgn in enumerate((1.0, -1.0)):
-                radius = k.r0 + sgn * k.lam * ws.y_rel
-                tan_delta = k.tan_delta0 + sgn * (k.eps / k.e0) * ws.y_rel
+                if ws.table is None:
+                    radius = k.r0 + sgn * k.lam * ws.y_rel
+                    tan_delta = k.tan_delta0 + sgn * (k.eps / k.e0) * ws.y_rel
+                    lateral = sgn * k.e0
+                else:  # table columns: radii 0-1, tan(contact angle) 2-3, wheel contact y 4-5
+                    radius, tan_delta, lateral = ws.table[0][[side, 2 + side, 4 + side]]
                 delta = np.arctan(tan_delta)
                 normal = rx_track @ np.array([0.0, -sgn * np.sin(delta), np.cos(delta)])
                 t_y = cross(normal, E_X)
-                rho = ws.rot @ np.array([0.0, sgn * k.e0, -radius])
+                rho = ws.rot @ np.array([0.0, lateral, -radius])
                 u = self.speed * E_X + c_dot + cross(om, rho)
                 xi_x = u @ E_X / self.speed
                 xi_y = u @ t_y / self.speed

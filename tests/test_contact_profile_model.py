@@ -1,0 +1,153 @@
+"""The equations of motion on a profile contact table (S1002 on UIC60 1:40), against oracles.
+
+- the JAX interpolation against scipy's cubic spline of the same smoothed columns, C2 across the
+  knots, finite with finite derivatives everywhere (also across the contact-point jumps and
+  beyond the table);
+- the vector field against the numpy twin reading the same table
+  (`tests/reference/bogie_twin.py` with `tests/reference/twin_table.py`);
+- a free decay: scipy Radau on the twin against diffrax on the JAX model.
+"""
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.integrate
+from scipy.interpolate import CubicSpline
+from scipy.ndimage import gaussian_filter1d
+
+from bogie_jax.contact import named_contact_table, profile_geometry
+from bogie_jax.model import build_model, static_equilibrium, vector_field
+from bogie_jax.params import manchester_benchmark
+from bogie_jax.track import perfect_track
+
+
+try:
+    from reference.bogie_twin import BogieTwin, perfect_track_inputs
+except ImportError:  # tests/ imported as a package
+    from tests.reference.bogie_twin import BogieTwin, perfect_track_inputs
+
+
+SPEED = 50.0  # [m/s]
+SMOOTHING = 3e-4  # [m], the default of `profile_geometry`
+_vector_field = jax.jit(vector_field)
+
+
+@pytest.fixture(scope="module")
+def params():
+    return manchester_benchmark(contact="s1002-uic60")
+
+
+@pytest.fixture(scope="module")
+def pair(params):
+    model = build_model(params, speed=SPEED, track=perfect_track())
+    return model, BogieTwin(params, SPEED, perfect_track_inputs)
+
+
+def test_interpolation_matches_scipy_and_is_c2():
+    table = named_contact_table("s1002-uic60")
+    geometry = profile_geometry(table, smoothing=SMOOTHING)
+    step = table.lateral[1] - table.lateral[0]
+    roll = CubicSpline(
+        table.lateral, gaussian_filter1d(table.roll, SMOOTHING / step, mode="nearest")
+    )
+    radius = CubicSpline(
+        table.lateral,
+        gaussian_filter1d(table.rolling_radius[:, 0], SMOOTHING / step, mode="nearest"),
+    )
+    y = np.random.default_rng(0).uniform(-0.012, 0.012, 200)
+    value, slope, curvature = (np.asarray(a) for a in geometry.evaluate(jnp.asarray(y)))
+    for k, spline in ((6, roll), (0, radius)):
+        for nu, got in enumerate((value, slope, curvature)):
+            # the same cubic pieces: equal to rounding (second derivatives reach 1e3-1e4)
+            np.testing.assert_allclose(got[k], spline(y, nu), rtol=1e-9, atol=1e-12)
+    knots = table.lateral[1:-1]  # second derivative continuous: left and right limits agree
+    eps = 1e-12
+    below = np.asarray(geometry.evaluate(jnp.asarray(knots - eps))[2])
+    above = np.asarray(geometry.evaluate(jnp.asarray(knots + eps))[2])
+    scale = np.max(np.abs(below), axis=1, keepdims=True)
+    assert np.max(np.abs(below - above) / scale) < 1e-6
+    far = np.asarray(geometry.evaluate(jnp.asarray([-0.05, 0.05]))[0])
+    assert np.all(np.isfinite(far))
+
+
+def test_derivatives_finite_across_jumps_and_beyond_the_table(pair):
+    """No NaN in the interpolation's derivatives (forward and reverse mode) or in the vector
+    field at the centre, at the contact-point jumps (near 0, 4.7 and 6.2 mm) and beyond the
+    table; the full Jacobian of the vector field is checked by the heavy test below."""
+    model, _ = pair
+    geometry = model.constants.geometry
+    points = jnp.asarray([0.0, 5e-5, 4.7e-3, 6.2e-3, 0.02, -0.05])
+    for f in (jax.jacfwd, jax.jacrev):
+        d = f(lambda y: geometry.evaluate(y)[0])(points)
+        assert np.all(np.isfinite(np.asarray(d)))
+    for offset in np.asarray(points):
+        y = np.zeros(20)
+        y[6:8] = offset
+        y[16:18] = 0.01
+        assert np.all(np.isfinite(np.asarray(_vector_field(0.0, jnp.asarray(y), model))))
+
+
+@pytest.mark.heavy
+def test_vector_field_jacobian_finite_at_the_jumps(pair):
+    model, _ = pair
+    jacobian = jax.jit(jax.jacfwd(vector_field, argnums=1))
+    for offset in (0.0, 5e-5, 4.7e-3, 6.2e-3, 0.02):
+        y = np.zeros(20)
+        y[6:8] = offset
+        y[16:18] = 0.01
+        assert np.all(np.isfinite(np.asarray(jacobian(0.0, jnp.asarray(y), model))))
+
+
+def test_rhs_matches_twin_on_the_profile_table(pair):
+    """|a_jax - a_twin| / |a_twin| <= 1e-9 (as the cone model's twin test), at random states
+    with wheelset offsets up to 8 mm (tread, flange root and flange contact)."""
+    model, twin = pair
+    rng = np.random.default_rng(3)
+    worst = 0.0
+    for _ in range(12):
+        y = np.concatenate([1e-3 * rng.standard_normal(10), 1e-2 * rng.standard_normal(10)])
+        y[6:8] = rng.uniform(-8e-3, 8e-3, 2)
+        f_jax = np.asarray(_vector_field(0.0, jnp.asarray(y), model))
+        f_twin = twin.rhs(0.0, y)
+        worst = max(worst, np.linalg.norm(f_jax[10:] - f_twin[10:]) / np.linalg.norm(f_twin[10:]))
+    assert worst <= 1e-9, worst
+
+
+def test_static_equilibrium_is_centred(params):
+    q0 = np.asarray(static_equilibrium(params))
+    assert np.all(np.isfinite(q0))
+    assert np.max(np.abs(q0[6:])) < 1e-12  # symmetric bogie on symmetric profiles
+
+
+@pytest.mark.heavy
+def test_free_decay_radau_on_twin_matches_diffrax(pair):
+    """0.3 s at 50 m/s from a 3 mm offset of both wheelsets (through the contact-point jump at
+    the centre): scipy Radau (rtol 1e-10, atol 1e-12) on the twin vs diffrax Dopri8 (rtol 1e-11,
+    atol 1e-13) on the JAX model; max abs difference per coordinate / max abs of the twin's,
+    over lateral and yaw of the wheelsets and the frame: <= 1e-6."""
+    model, twin = pair
+    y0 = np.zeros(20)
+    y0[6:8] = 3e-3
+    ts = np.linspace(0.0, 0.3, 61)
+    sol = scipy.integrate.solve_ivp(
+        twin.rhs, (0.0, ts[-1]), y0, method="Radau", rtol=1e-10, atol=1e-12, t_eval=ts
+    )
+    assert sol.success, sol.message
+    y_jax = diffrax.diffeqsolve(
+        diffrax.ODETerm(vector_field),
+        diffrax.Dopri8(),
+        t0=0.0,
+        t1=ts[-1],
+        dt0=1e-4,
+        y0=jnp.asarray(y0),
+        args=model,
+        stepsize_controller=diffrax.PIDController(rtol=1e-11, atol=1e-13),
+        saveat=diffrax.SaveAt(ts=jnp.asarray(ts)),
+        max_steps=100_000,
+    ).ys
+    y_twin, y_jax = sol.y.T, np.asarray(y_jax)
+    for cols in ([1], [5], [6, 7], [8, 9]):  # frame lateral, frame yaw, wheelset lateral, yaw
+        diff = np.abs(y_jax[:, cols] - y_twin[:, cols]).max()
+        assert diff / np.abs(y_twin[:, cols]).max() <= 1e-6, (cols, diff)
