@@ -45,9 +45,10 @@ class ProfileGeometry(eqx.Module):
     All fields are arrays (data of the model, differentiable, never static):
 
     - `start` [m], `step` [m]: the table's first lateral displacement and spacing.
-    - `coefficients`: (8, n - 1, 4) cubic coefficients per interval, highest power first, of the
-      `QUANTITIES` (rolling radii, tangents of the track-plane contact angles, wheel contact
-      positions, roll, centre height).
+    - `coefficients`: (n - 1, 4, 8) cubic coefficients per interval (highest power first) of
+      the 8 `QUANTITIES` (rolling radii, tangents of the track-plane contact angles, wheel
+      contact positions, roll, centre height): one contiguous block per interval, so that a
+      lookup reads one row.
     - `vertical_yaw_coefficient` [m]: xi of `u_z = ... - xi psi^2 / 2`, the cone value
       tan(d) (e - r tan(d)) at the centred contact (reference doc 1.2; a 2-D table has no yaw).
     - `cone_angle` [rad]: the contact angle of the centred contact (static normal load).
@@ -66,17 +67,18 @@ class ProfileGeometry(eqx.Module):
         """Values, first and second derivatives with respect to y of the `QUANTITIES` at the
         lateral displacement(s) `y` [m]; each of shape (8, *y.shape)."""
         y = jnp.asarray(y)
-        n = self.coefficients.shape[1]
+        n = self.coefficients.shape[0]
         end = self.start + n * self.step
         inside = jnp.clip(y, self.start, end)
         i = jnp.clip(jnp.floor((inside - self.start) / self.step), 0, n - 1).astype(int)
-        t = inside - (self.start + i * self.step)
-        a, b, c, d = jnp.moveaxis(self.coefficients[:, i, :], -1, 0)
+        t = (inside - (self.start + i * self.step))[..., None]
+        a, b, c, d = jnp.moveaxis(self.coefficients[i], -2, 0)  # each (*y.shape, 8)
         value = ((a * t + b) * t + c) * t + d
         slope = (3 * a * t + 2 * b) * t + c
         curvature = 6 * a * t + 2 * b
-        beyond = y - inside
-        return value + slope * beyond, slope, jnp.where(beyond == 0, curvature, 0.0)
+        beyond = (y - inside)[..., None]
+        curvature = jnp.where(beyond == 0, curvature, 0.0)
+        return tuple(jnp.moveaxis(x, -1, 0) for x in (value + slope * beyond, slope, curvature))
 
     @property
     def half_range(self):
@@ -112,7 +114,7 @@ def profile_geometry(table: ContactTable, *, smoothing: float = 3e-4) -> Profile
     ]
     if smoothing > 0:
         columns = [gaussian_filter1d(c, smoothing / step, mode="nearest") for c in columns]
-    coefficients = np.stack([CubicSpline(lateral, c).c.T for c in columns])
+    coefficients = np.stack([CubicSpline(lateral, c).c.T for c in columns], axis=-1)
     tan_d = np.tan(table.contact_angle[centre, 0])
     e, r = table.wheel_contact_y[centre, 0], table.rolling_radius[centre, 0]
     hertz = [

@@ -14,11 +14,11 @@ class TwinTable:
     """Quantities of `bogie_jax.contact.QUANTITIES` as functions of y_rel [m]."""
 
     def __init__(self, geometry):
-        coefficients = np.asarray(geometry.coefficients)  # (8, n - 1, 4), highest power first
+        coefficients = np.asarray(geometry.coefficients)  # (n - 1, 4, 8), highest power first
         start, step = float(geometry.start), float(geometry.step)
-        breaks = start + step * np.arange(coefficients.shape[1] + 1)
+        breaks = start + step * np.arange(coefficients.shape[0] + 1)
         self.lo, self.hi = breaks[0], breaks[-1]
-        self.pieces = [PPoly(c.T, breaks) for c in coefficients]
+        self.pieces = [PPoly(coefficients[:, :, q].T, breaks) for q in range(8)]
         self.xi = float(geometry.vertical_yaw_coefficient)
 
     def __call__(self, y_rel: float):
