@@ -151,3 +151,42 @@ def test_free_decay_radau_on_twin_matches_diffrax(pair):
     for cols in ([1], [5], [6, 7], [8, 9]):  # frame lateral, frame yaw, wheelset lateral, yaw
         diff = np.abs(y_jax[:, cols] - y_twin[:, cols]).max()
         assert diff / np.abs(y_twin[:, cols]).max() <= 1e-6, (cols, diff)
+
+
+def test_wear_blends_the_new_and_worn_tables():
+    """`wear.level` blends the tables linearly: level 0 is the new pair, 1 the worn wheel's; the
+    derivative with respect to the level is worn - new (forward mode through the constants), and
+    the vector field at a half-worn wheel is finite."""
+    from bogie_jax.contact import equivalent_conicity
+    from bogie_jax.model import model_constants
+    from bogie_jax.params import set_parameters
+
+    worn_params = manchester_benchmark(contact="s1002-uic60", wear=1.0)
+    new = profile_geometry(named_contact_table("s1002-uic60"))
+    worn = profile_geometry(named_contact_table("worn-uic60"))
+    at_0 = model_constants(set_parameters(worn_params, {"wear.level": 0.0})).geometry
+    at_1 = model_constants(worn_params).geometry
+    np.testing.assert_array_equal(np.asarray(at_0.coefficients), np.asarray(new.coefficients))
+    np.testing.assert_allclose(at_1.coefficients, worn.coefficients, rtol=1e-12)  # rounding
+
+    def coefficients(level):
+        params = set_parameters(worn_params, {"wear.level": level})
+        return model_constants(params).geometry.coefficients
+
+    _, tangent = jax.jvp(coefficients, (0.4,), (1.0,))
+    np.testing.assert_allclose(tangent, worn.coefficients - new.coefficients, rtol=1e-12)
+    # the equivalent conicity is linear in Delta r, so it blends with the same weights
+    table_new, table_worn = named_contact_table("s1002-uic60"), named_contact_table("worn-uic60")
+    a = np.array([2e-3, 4e-3])
+    dr = 0.7 * table_new.rolling_radius_difference + 0.3 * table_worn.rolling_radius_difference
+    blended = equivalent_conicity(table_new.lateral, dr, a)
+    expected = 0.7 * equivalent_conicity(
+        table_new.lateral, table_new.rolling_radius_difference, a
+    ) + 0.3 * equivalent_conicity(table_worn.lateral, table_worn.rolling_radius_difference, a)
+    np.testing.assert_allclose(blended, expected, rtol=1e-12)
+    model = build_model(
+        set_parameters(worn_params, {"wear.level": 0.5}), speed=SPEED, track=perfect_track()
+    )
+    y = np.zeros(20)
+    y[6:8] = 4e-3
+    assert np.all(np.isfinite(np.asarray(_vector_field(0.0, jnp.asarray(y), model))))

@@ -43,6 +43,7 @@ from ._profile import (
 from ._profile_geometry import (
     QUANTITIES as QUANTITIES,
     ProfileGeometry as ProfileGeometry,
+    blend_geometries as blend_geometries,
     profile_geometry as profile_geometry,
 )
 from ._search import (

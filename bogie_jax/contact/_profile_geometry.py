@@ -16,6 +16,7 @@ so no NaN can arise. Beyond the table the columns continue linearly (C1) with th
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -129,3 +130,10 @@ def profile_geometry(table: ContactTable, *, smoothing: float = 3e-4) -> Profile
         cone_angle=jnp.asarray(table.contact_angle[centre, 0]),
         hertz_curvatures=jnp.asarray(hertz),
     )
+
+
+def blend_geometries(new: ProfileGeometry, worn: ProfileGeometry, level) -> ProfileGeometry:
+    """(1 - level) new + level worn, field by field (differentiable in `level` [-]); the two
+    tables must share their lateral grid (`start`, `step`), as the shipped pairs do."""
+    level = jnp.asarray(level)
+    return jax.tree_util.tree_map(lambda a, b: a + level * (b - a), new, worn)

@@ -7,6 +7,7 @@ from ..contact import (
     ConeGeometry,
     CreepCoefficients,
     ProfileGeometry,
+    blend_geometries,
     cone_geometry,
     cone_on_rail_curvatures,
     creep_coefficients,
@@ -52,6 +53,9 @@ def model_constants(params: BogieParams) -> ModelConstants:
         )
     else:  # a named profile pair: its table, built once per process outside the trace
         geometry = profile_geometry(named_contact_table(params.contact_geometry))
+        if params.wear is not None:  # blend towards the worn wheel (differentiable nuisance)
+            worn = profile_geometry(named_contact_table("worn-uic60"))
+            geometry = blend_geometries(geometry, worn, params.wear.level)
     primary_preload = (m.frame.mass + m.carbody_mass) * GRAVITY / 4
     secondary_preload = m.carbody_mass * GRAVITY / 2
     vertical_wheel_load = (m.wheelset.mass * GRAVITY + 2 * primary_preload) / 2

@@ -17,6 +17,7 @@ from ._groups import (
     PrimarySuspension as PrimarySuspension,
     SecondarySuspension as SecondarySuspension,
     WheelRailContact as WheelRailContact,
+    WheelWear as WheelWear,
     YawDampers as YawDampers,
 )
 from ._paths import (

@@ -8,6 +8,7 @@ from ._groups import (
     PrimarySuspension,
     SecondarySuspension,
     WheelRailContact,
+    WheelWear,
     YawDampers,
 )
 
@@ -44,6 +45,9 @@ class BogieParams(eqx.Module):
     primary: PrimarySuspension
     secondary: SecondarySuspension
     yaw_dampers: YawDampers
+    wear: WheelWear | None = None
+    """Wheel wear of a profile contact geometry (`WheelWear`, parameter `wear.level`); None for
+    the cone and for an unworn profile pair."""
     contact_geometry: str = eqx.field(default="cone", static=True)
     """The wheel/rail contact geometry: `"cone"` (a cone on a circular rail head from the
     `contact` fields, reference doc 1.2) or a named profile pair of `bogie_jax.contact`

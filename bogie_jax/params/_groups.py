@@ -198,3 +198,15 @@ class YawDampers(_Group):
     c_blowoff: float = _side(
         unit="N s/m", valid=(0.0, 1e8), bounds=(1e3, 1e5), doc="damping above blow-off velocity"
     )
+
+
+class WheelWear(_Group):
+    """Wear of a profile pair's wheel as one differentiable scalar (only with a profile contact
+    geometry, `BogieParams.contact_geometry` = `"s1002-uic60"`): the contact table is the blend
+    (1 - level) new + level worn of the new S1002's and the measured worn wheel's tables (both on
+    UIC60 1:40). The equivalent conicity, a linear functional of Delta r, blends the same way:
+    tan(gamma_e) = (1 - level) tan(gamma_e, new) + level tan(gamma_e, worn) at every amplitude."""
+
+    level: float = physical(
+        unit="-", valid=(0.0, 1.0), bounds=(0.0, 1.0), doc="wheel wear: 0 new, 1 the worn profile"
+    )

@@ -17,22 +17,27 @@ from ._groups import (
     PrimarySuspension,
     SecondarySuspension,
     WheelRailContact,
+    WheelWear,
     YawDampers,
 )
 
 
-def manchester_benchmark(contact: str = "cone") -> BogieParams:
+def manchester_benchmark(contact: str = "cone", wear: float | None = None) -> BogieParams:
     """Manchester benchmark vehicle 1 bogie (reference doc 5.1).
 
     `contact`: `"cone"` (default) a 1:20 conical wheel on a 0.3 m rail head; `"s1002-uic60"`
     the Manchester Contact Benchmark's new S1002 wheel on UIC60 inclined 1:40, gauge 1435 mm,
     flange-back spacing 1360 mm (its contact table replaces the cone's geometry; the `contact`
     fields keep the material data and r0); `"worn-uic60"` a measured worn wheel on that rail.
+    `wear`: with `"s1002-uic60"`, a `WheelWear` level in [0, 1] blending the new and the worn
+    wheel's tables (a differentiable nuisance parameter, `wear.level`); None: no wear parameter.
     """
     if contact not in ("cone", "s1002-uic60", "worn-uic60"):
         raise ValueError(
             f"unknown contact {contact!r}; choose 'cone', 's1002-uic60' or 'worn-uic60'"
         )
+    if wear is not None and contact != "s1002-uic60":
+        raise ValueError(f"`wear` needs contact='s1002-uic60', got contact={contact!r}")
     return BogieParams(
         masses=Masses(
             frame=BodyInertia(mass=2615.0, ixx=1722.0, iyy=1476.0, izz=3067.0),
@@ -51,6 +56,7 @@ def manchester_benchmark(contact: str = "cone") -> BogieParams:
         primary=PrimarySuspension(kx=31.391e6, ky=3.884e6, kz=1.22e6, cx=15e3, cy=2e3, cz=4e3),
         secondary=SecondarySuspension(kx=160e3, ky=160e3, kz=430e3, cy=32e3, cz=20e3),
         yaw_dampers=YawDampers(c=400e3, blowoff_velocity=0.015, c_blowoff=10e3),
+        wear=None if wear is None else WheelWear(level=wear),
         contact_geometry=contact,
     )
 
