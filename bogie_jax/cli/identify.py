@@ -4,7 +4,10 @@ synthetic data.
 The starts run in chunks of one compiled batch (`bogie_jax.identify.fit_multistart_chunked`);
 after every chunk its records are appended to `OUT/starts.jsonl`, so an interrupted run loses no
 finished start (`--resume` continues it), and `OUT/results.json` is written from what is
-finished. The end prints the wall time and the compile share.
+finished. With `--data`, the best start is then fitted again with the monitor's noise model
+(`bogie_jax.identify.fit_noise_model`: the sensor bias removed, each channel's noise estimated
+and the fit reweighted, the sandwich covariance), and its estimates and intervals are reported.
+The end prints the wall time and the compile share.
 """
 
 import dataclasses
@@ -18,7 +21,12 @@ import jax.random as jr
 import numpy as np
 
 from ..cost import make_objective
-from ..identify import fit_multistart_chunked, scenario_problem, tolerance_bounds
+from ..identify import (
+    fit_multistart_chunked,
+    fit_noise_model,
+    scenario_problem,
+    tolerance_bounds,
+)
 from ..io import load_measurement
 from ..track import TrackReference
 from ._common import UsageError, split_names
@@ -259,6 +267,26 @@ def _summary(args, desc, run, parameters) -> dict:
     )
 
 
+def _noise_model(objective, best, parameters, progress) -> dict:
+    """The best start fitted again with the monitor's noise model (module docstring); its
+    estimates and intervals replace the start's in `parameters`; returns its summary."""
+    progress.compiling("the fit with the noise model (sensor bias, per-channel noise)")
+    model = fit_noise_model(objective, start=np.asarray(best.estimates))
+    for p, est, se, ci in zip(parameters, model.estimates, model.std_errors, model.ci95):
+        p.update(estimate=float(est), std_error=float(se), ci95=[float(v) for v in ci])
+    noise = ", ".join(f"{x:.3g}" for x in model.channel_noise)
+    progress.say(
+        f"noise model: sensor bias removed, channel noise x stated [{noise}], {model.reweights} "
+        f"refits, {model.covariance_rule} covariance ({model.status})"
+    )
+    return dict(
+        status=model.status, noise=model.noise, covariance=model.covariance_rule,
+        bias_removed=model.bias_removed, reweights=model.reweights,
+        channel_noise=[float(x) for x in model.channel_noise],
+        noise_variance=model.noise_variance, dof=model.dof, bandwidth=model.bandwidth,
+    )  # fmt: skip
+
+
 def run(args, progress) -> int:
     """Run `bogie-jax identify`; returns the exit code (130 if interrupted)."""
     method, design = _check_args(args)
@@ -305,7 +333,12 @@ def run(args, progress) -> int:
     if chunked.resumed:
         progress.say(f"resumed {chunked.resumed} finished starts from {record}")
     parameters = parameter_records(objective, chunked.result, truth)
+    model = None
+    if args.data is not None and chunked.result is not None and chunked.result.best is not None:
+        model = _noise_model(objective, chunked.result.best, parameters, progress)
     summary = _summary(args, desc, chunked, parameters)
+    if model is not None:
+        summary["noise_model"] = model
     (out / "results.json").write_text(json.dumps(summary, indent=1))
     result = chunked.result
     if chunked.interrupted:

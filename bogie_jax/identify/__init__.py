@@ -57,6 +57,11 @@ from ._multistart import (
     design_starts as design_starts,
     fit_multistart as fit_multistart,
 )
+from ._noise_model import (
+    ChannelResiduals as ChannelResiduals,
+    NoiseModelFit as NoiseModelFit,
+    fit_noise_model as fit_noise_model,
+)
 from ._problem import (
     RESULT_NAMES as RESULT_NAMES,
     BoxTransform as BoxTransform,

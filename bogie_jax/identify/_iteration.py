@@ -105,16 +105,9 @@ def least_squares_member(method: LeastSquaresMethod, problem_of, max_steps: int)
 
 
 def queue_lanes(lanes, n_params: int, devices=None) -> int | None:
-    """Lanes per device for a queued batch: an int as given, `None` (lock-step) as given, or
-    `"auto"`: one fit per device on CPU devices, about 32 residual tangents per device and step,
-    `ceil(32 / (n + 1))` fits, on accelerators (`devices`: those of the batch, default all).
-
-    On a CPU device (one core) vmapping fits buys no parallelism: a vmapped fit evaluates both
-    sides of its branches and steps every lane's ODE solve until the slowest lane's ends, and
-    JAX batches the differentiated solve when it traces the program. One lane is stepped
-    without `vmap` (`runtime.queued_batch`). On a GPU the lanes are its parallelism
-    (`benchmarks/lanes.py` compares the two).
-    """
+    """Lanes per device for a queued batch: an int or `None` (lock-step) as given, or `"auto"`:
+    one fit per CPU device (vmapped fits buy a core no parallelism), `ceil(32 / (n + 1))` fits
+    (about 32 residual tangents per step) per accelerator; `devices`: default all."""
     if lanes is None:
         return None
     if lanes == "auto":
@@ -129,12 +122,7 @@ def queue_lanes(lanes, n_params: int, devices=None) -> int | None:
 
 def default_chunk(lanes, n_params: int, devices=None) -> int:
     """Starts per chunk of a chunked multistart when the caller gives none: every device's
-    lanes once (`queue_lanes`; `"auto"` where `lanes` is `None`, the lock-step batch), at least
-    two per device (a CPU device steps one fit at a time, so the chunk only sets how often
-    finished work is saved).
-
-    On an accelerator the chunk is its parallelism, so it holds every lane.
-    """
+    lanes once (`queue_lanes`), at least two per device."""
     devices = jax.devices() if devices is None else devices
     per_device = queue_lanes("auto" if lanes is None else lanes, n_params, devices)
     return len(devices) * max(2, per_device)

@@ -3,9 +3,9 @@
 optimistix's Gauss-Newton family stops on a Cauchy test: the accepted step and *every*
 residual's change below `atol + rtol |value|`. The residuals of an ODE fit jitter at the
 solver's error level (adaptive steps move with the parameters), so that test does not pass
-before the trust region has shrunk to nothing: the fits ran 33-43 steps, and a collapsed region
-(damping `1 / step_size` infinite) made the step's linear solve fail, so fits that had reached
-the best minimum ended `singular`.
+before the trust region has shrunk to nothing, and a collapsed region (damping `1 / step_size`
+infinite) makes the step's linear solve fail: a fit that has reached the best minimum ends
+`singular`.
 
 Here the fit also stops when the Bates-Watts **relative offset** is small: with `J = Q R` at the
 current point, residuals `r` (m of them) and `n` parameters,
@@ -22,24 +22,17 @@ scale-free (no parameter or residual units enter). Without noise (`|Q2^T r|` at 
 error level) it only passes at the ODE error's own optimum, so the Cauchy test stays as the
 other way to stop.
 
-`offset_tol` is 1e-2, not Bates and Watts' 1e-3: the ODE error puts a floor under the offset.
-Measured on the default `bogie-jax identify` scenario (3 parameters, 8 starts, ODE rtol 1e-6):
-1e-4 never passed (every fit as with optimistix's LM: 7-43 steps, 2 starts `singular`); 1e-3
-stopped 5 of the 8 fits after 5-14 steps and left one `singular`; 1e-2 stopped every fit that
-reached the best minimum after 4-13 steps, all `successful` (6 of 8 in that minimum, against 4),
-and the best estimate moved by at most 3e-3 of its standard error. With the parameters held on
-a bound left out (`LevenbergMarquardt`), the two starts that end on a bound stop after 4 and 7
-steps instead of 7 and 41: 55 steps for the 8 starts, against 272 with optimistix's test alone.
+`offset_tol` is 1e-2, not Bates and Watts' 1e-3: the ODE error puts a floor under the offset,
+and a tighter tolerance leaves fits that have reached the optimum stepping at that floor until
+the trust region collapses (`singular`). Parameters held on a bound are left out of the offset
+(`LevenbergMarquardt`).
 
-**Stalled at the ODE error.** The floor can lie above `offset_tol`. In the same identification
-with the objective started from rest at zero (`bogie_jax.cost.fixed_rest_state`), one start
-reached the best minimum and stayed there for 30 steps at RO = 0.013: its Gauss-Newton step was
-0.02 standard errors long, and the cost changed by 1e-3 between points 1e-6 apart in theta
-(the ODE error), so no step along it was accepted; the trust region shrank until the step's
-linear solve failed, and the start ended `singular`, reported as failed. So the fit also stops,
-successfully, when `stall_steps` (5) steps in a row were rejected at an offset below
-`stall_offset` (0.1): near the optimum of a smooth problem the Gauss-Newton model predicts the
-decrease well and its steps are accepted, so repeated rejections there mean that the
+**Stalled at the ODE error.** The floor can lie above `offset_tol`: near the optimum the cost
+then changes by more between nearby points (the ODE error) than the Gauss-Newton step promises,
+no step is accepted, and the trust region shrinks until the step's linear solve fails. So the
+fit also stops, successfully, when `stall_steps` (5) steps in a row were rejected at an offset
+below `stall_offset` (0.1): near the optimum of a smooth problem the Gauss-Newton model predicts
+the decrease well and its steps are accepted, so repeated rejections there mean that the
 objective's own error, not the model, stops progress. Such a fit ends within 0.1 sqrt(n)
 standard errors of the optimum, one that passes `offset_tol` within 0.01 sqrt(n).
 """
@@ -87,8 +80,7 @@ def free_parameters(y, args, bound_tol):
 
 
 def _quiet(**kwargs):
-    """No progress output (a module-level function: equal methods stay equal, so a compiled
-    batch keyed on the method is found again)."""
+    """No output (module-level: equal methods stay equal, and their batch is found again)."""
 
 
 class LevenbergMarquardt(optx.AbstractGaussNewton):

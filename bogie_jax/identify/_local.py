@@ -177,20 +177,10 @@ class PatternSearch(AbstractLocalMethod):
 def local_methods(
     rtol: float = 1e-10, atol: float = 1e-10, offset_tol: float = 1e-2, stall_offset: float = 0.1
 ) -> dict:
-    """The name -> method table used at the CLI/IO boundary.
-
-    The least-squares steps use `HouseholderQR` (no LAPACK call, see `_householder.py`: a
-    batched LAPACK QR can deadlock a multistart sharded over CPU devices).
-
-    `rtol`, `atol`: optimistix's Cauchy test, which stops a fit when the accepted step and every
-    residual's change are both below `atol + rtol |value|` (element-wise, max norm). The
-    residuals of an ODE fit jitter at the solver's error level, so that test rarely passes
-    before the steps vanish (on the default `bogie-jax identify` scenario, 8 starts at ODE rtol
-    1e-6, 1e-10 ... 1e-3 gave the same 7-43 steps). The LM (`_levenberg_marquardt`) also stops
-    on the Bates-Watts relative offset (`offset_tol`, default 1e-2: the estimate is then within
-    `0.01 sqrt(n)` joint standard errors of the optimum), or below `stall_offset` (0.1) when
-    five steps in a row were rejected (stalled at the ODE error); `offset_tol=0.0,
-    stall_offset=0.0` leaves optimistix's test alone, as the other methods have it."""
+    """The name -> method table used at the CLI/IO boundary; least-squares steps by
+    `HouseholderQR` (a batched LAPACK QR can deadlock a sharded multistart). `rtol`, `atol`:
+    optimistix's Cauchy test; the LM also stops on the relative offset (`offset_tol`,
+    `stall_offset`: `_levenberg_marquardt.py`; both 0 leave optimistix's test alone)."""
     qr = HouseholderQR()
     return {
         "lm": LeastSquaresMethod(

@@ -74,8 +74,7 @@ class LeastSquaresProblem(eqx.Module):
 
 
 def problem_residuals(theta, problem: LeastSquaresProblem):
-    """`problem`'s residuals at `theta`: the solvers' `fn(y, args)` with the problem itself as
-    `args` (so a solver's stopping rule can read the transform)."""
+    """The solvers' `fn(y, args)`, `args` the problem itself (its transform for the LM)."""
     return problem.residuals(theta, problem.args)
 
 
@@ -171,8 +170,7 @@ RESULT_NAMES = tuple(
 
 
 def is_successful(result) -> jax.Array:
-    """Boolean (array, under vmap): whether `result` (an `optimistix.RESULTS`) is
-    `RESULTS.successful`."""
+    """Whether `result` (an `optimistix.RESULTS`, batched under vmap) is successful."""
     return result == optx.RESULTS.successful
 
 
