@@ -190,3 +190,31 @@ def test_wear_blends_the_new_and_worn_tables():
     y = np.zeros(20)
     y[6:8] = 4e-3
     assert np.all(np.isfinite(np.asarray(_vector_field(0.0, jnp.asarray(y), model))))
+
+
+def test_leaving_the_table_is_a_solve_status_not_a_nan(pair):
+    """A wheelset thrown beyond the 12 mm table: with the event condition the solve stops with
+    `event_occurred` and finite states; the cone never triggers it."""
+    from bogie_jax.model import beyond_contact_table
+
+    model, _ = pair
+    y0 = np.zeros(20)
+    y0[6:8] = 10e-3
+    y0[16:18] = 1.5  # 1.5 m/s outwards: enough to climb the flange past the 12 mm table
+    solution = diffrax.diffeqsolve(
+        diffrax.ODETerm(vector_field),
+        diffrax.Tsit5(),
+        t0=0.0,
+        t1=0.5,
+        dt0=1e-4,
+        y0=jnp.asarray(y0),
+        args=model,
+        stepsize_controller=diffrax.PIDController(rtol=1e-6, atol=1e-8),
+        event=diffrax.Event(beyond_contact_table),
+        throw=False,
+    )
+    assert solution.result == diffrax.RESULTS.event_occurred
+    assert float(solution.ts[-1]) < 0.05
+    assert np.all(np.isfinite(np.asarray(solution.ys)))
+    cone = build_model(manchester_benchmark(), speed=SPEED, track=perfect_track())
+    assert not bool(beyond_contact_table(0.0, jnp.asarray(y0), cone))

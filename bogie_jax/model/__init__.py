@@ -40,6 +40,7 @@ from ._stability import (
     stability_sweep as stability_sweep,
     system_matrix as system_matrix,
 )
+from ._table_range import beyond_contact_table as beyond_contact_table
 from ._wheel_rail import (
     contact_generalised_forces as contact_generalised_forces,
     contact_velocities as contact_velocities,
