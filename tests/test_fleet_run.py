@@ -138,7 +138,8 @@ def test_a_local_dask_cluster_of_two_workers_judges_and_survives_a_dead_worker(
     (failure,) = store.failures()
     assert failure["bogie_id"] == "crash-1" and "KilledWorker" in failure["error"]
     pids = {j["record"]["pid"] for j in store.judgements()}
-    assert len(pids) == 2 and os.getpid() not in pids  # both workers, neither of them this one
+    # both workers (a worker restarted after the crash has a new pid), neither of them this one
+    assert len(pids) >= 2 and os.getpid() not in pids
     assert "bogie-dates 5/5 done" in lines[-1]
 
 
