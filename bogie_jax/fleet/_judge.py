@@ -3,7 +3,7 @@
 object `bogie-jax monitor --data` writes and `fleet import` reads."""
 
 from ..io import load_measurement, load_track, load_track_csv, verdicts_record
-from ..monitor import monitor
+from ..monitor import MonitorOptions, monitor
 from ..params import PARAMETER_SETS
 from ..sensitivity import sensor_layouts
 from ._task import JudgeTask
@@ -21,20 +21,14 @@ def _tracks(task: JudgeTask, measurements):
     return tracks
 
 
-def _monitor_options(s) -> dict:
-    """`monitor`'s keyword arguments for the fleet's settings: a `MonitorOptions` where the
-    monitor package has it (issue "A house a newcomer carries on"), else its keywords."""
-    values = dict(
+def _monitor_options(s) -> MonitorOptions:
+    """`monitor`'s options for the fleet's settings."""
+    return MonitorOptions(
         candidates=s.candidates or None,
         band=s.band,
         false_alarm_rate=s.false_alarm_rate,
         track_error=1e-3 * s.track_error_mm,
     )
-    try:
-        from ..monitor import MonitorOptions
-    except ImportError:
-        return values
-    return {"options": MonitorOptions(**values)}
 
 
 def judge_visit(task: JudgeTask) -> dict:
@@ -44,7 +38,7 @@ def judge_visit(task: JudgeTask) -> dict:
     sensors = sensor_layouts(params)[task.layout]
     measurements = [load_measurement(f, sensors=sensors) for f in task.files]
     tracks = _tracks(task, measurements)
-    result = monitor(measurements, tracks, params=params, **_monitor_options(task.settings))
+    result = monitor(measurements, tracks, params=params, options=_monitor_options(task.settings))
     source = f"bogie-jax fleet run: {task.bogie_id} on {task.date}"
     return verdicts_record(
         result, date=task.date, source=source, bogie_id=task.bogie_id, vehicle=task.vehicle,
