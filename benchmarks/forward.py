@@ -1,4 +1,4 @@
-"""Forward-model benchmark (issue 2, item 14).
+"""Forward-model benchmark.
 
 1. One run: 10 s at 50 m/s, 200 Hz output, rtol 1e-6 (atol 1e-8 on every state), ERRI-low
    track. JAX (Tsit5, after compilation; compile time reported separately) against
@@ -9,11 +9,11 @@
    varied +-20 %) through `runtime.batch.batch_runner`: on one device, sharded over the 2 CPU
    cores, against a Python loop of single jitted solves. Throughputs as ratios from one run.
 
-3. `--contact`: the same single run with the S1002/UIC60 1:40 contact table (issue 49) against
+3. `--contact`: the same single run with the S1002/UIC60 1:40 contact table against
    the cone: median time, compile time apart, steps, and the time ratio (target <= 1.5).
 
 Run: `python benchmarks/forward.py` (writes results/forward/jax_vs_scipy_and_batch.{json,md});
-`python benchmarks/forward.py --contact` prints the contact-table case (writes nothing).
+`python benchmarks/forward.py --contact` writes results/forward/profile_vs_cone_contact.{json,md}.
 """
 
 import os
@@ -233,21 +233,41 @@ def main():
 
 
 def contact_case():
-    """10 s at 50 m/s on the ERRI-low track: cone vs the S1002/UIC60 1:40 table (printed)."""
+    """10 s at 50 m/s on the ERRI-low track: the cone against the S1002/UIC60 1:40 table."""
     track = synthesise_track(
         ERRIB176Spectrum.low(), key=jr.PRNGKey(0), length=SPEED * DURATION + 100
     )
-    rows = {}
+    records = []
     for contact in ("cone", "s1002-uic60"):
         out, median, compile_s = jax_single(bj.manchester_benchmark(contact=contact), track)
-        rows[contact] = (median, compile_s, int(out.num_steps))
-        print(
-            f"{contact:12s} median {median:.3f} s  compile {compile_s:.1f} s  steps {out.num_steps}"
+        records.append(
+            {
+                "contact": contact,
+                "time_s": median,
+                "compile_s": compile_s,
+                "steps": int(out.num_steps),
+            }
         )
-    (cone, _, cone_steps), (table, _, table_steps) = rows["cone"], rows["s1002-uic60"]
-    print(
-        f"time ratio table/cone: {table / cone:.2f} (steps ratio {table_steps / cone_steps:.2f}, "
-        f"time per step ratio {(table / table_steps) / (cone / cone_steps):.2f})"
+    cone, table = records
+    ratio = table["time_s"] / cone["time_s"]
+    per_step = ratio * cone["steps"] / table["steps"]
+    lines = [
+        f"## Contact geometry: one {DURATION:g} s run at {SPEED:g} m/s, {RATE:g} Hz, rtol {RTOL:g}",
+        "",
+        "| contact | median time [s] | compile [s] | steps |",
+        "| --- | --- | --- | --- |",
+        *(
+            f"| {r['contact']} | {r['time_s']:.3f} | {r['compile_s']:.1f} | {r['steps']} |"
+            for r in records
+        ),
+        "",
+        f"Time ratio table / cone: **{ratio:.2f}** (target <= 1.5); per step {per_step:.2f}.",
+    ]
+    write_outputs(
+        "forward/profile_vs_cone_contact",
+        records,
+        "\n".join(lines) + "\n",
+        extra={"time_ratio": ratio, "time_per_step_ratio": per_step},
     )
 
 
