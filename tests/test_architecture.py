@@ -7,6 +7,7 @@ import that dodges a cycle at run time is still an edge here.
 
 import ast
 import pathlib
+import re
 import subprocess
 import sys
 
@@ -301,3 +302,17 @@ def test_monitor_functions_are_short_steps_with_few_parameters():
                 where = f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"
                 over.append(f"{where}: {n_lines} lines, {n_params} parameters")
     assert not over, "monitor/ functions over the limits:\n" + "\n".join(over)
+
+
+def test_monitor_and_identify_docstrings_hold_no_dated_notes():
+    """A docstring of `monitor/` or `identify/` says what a thing is and does; dated
+    measurements go to docs/history.md (issue 52)."""
+    date = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")
+    dated = [
+        f"{path.relative_to(ROOT)}:{n}"
+        for folder in ("monitor", "identify")
+        for path in sorted((PACKAGE / folder).glob("*.py"))
+        for n, line in enumerate(path.read_text().splitlines(), start=1)
+        if date.search(line)
+    ]
+    assert not dated, "dated notes in the source:\n" + "\n".join(dated)
