@@ -3,7 +3,7 @@
 import dataclasses
 import math
 
-from .._validation import check_number, check_positive_int, check_range
+from .._validation import check_number, check_positive_int
 from ..cost import (
     COVARIANCES,
     NOISE_MODELS,
@@ -19,6 +19,7 @@ from ._checks import RUN_MISFIT
 from ._elements import MAX_CORRELATION, RESOLUTION
 from ._horizon import HORIZON_START
 from ._nuisance import DEFAULT_NUISANCE
+from ._verdict import check_false_alarm_rate
 
 
 def _names(value) -> tuple[str, ...] | None:
@@ -78,7 +79,7 @@ class MonitorOptions:
         set_ = lambda name, value: object.__setattr__(self, name, value)
         set_("candidates", _names(self.candidates))
         set_("nuisance", _names(self.nuisance) or ())
-        check_range("false_alarm_rate", self.false_alarm_rate, 0.0, 0.5, open_lo=True, open_hi=True)
+        check_false_alarm_rate(self.false_alarm_rate)
         _check_kind("noise", self.noise, AbstractNoiseModel, NOISE_MODELS)
         if self.covariance is not None:
             _check_kind("covariance", self.covariance, AbstractCovariance, COVARIANCES)

@@ -44,6 +44,7 @@ import dataclasses
 import math
 from statistics import NormalDist
 
+from .._validation import check_range
 from ..identify import t_quantile
 
 
@@ -140,10 +141,8 @@ class Verdict:
 
 def check_false_alarm_rate(false_alarm_rate: float) -> float:
     """`false_alarm_rate` as a float in (0, 0.5); raises `ValueError` naming it otherwise."""
-    alpha = float(false_alarm_rate)
-    if not 0 < alpha < 0.5:
-        raise ValueError(f"`false_alarm_rate` = {false_alarm_rate!r} must lie in (0, 0.5)")
-    return alpha
+    check_range("false_alarm_rate", false_alarm_rate, 0.0, 0.5, open_lo=True, open_hi=True)
+    return float(false_alarm_rate)
 
 
 def decision_z(false_alarm_rate: float, n_elements: int) -> float:
