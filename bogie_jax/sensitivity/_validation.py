@@ -4,13 +4,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._validation import check_power_of_two as check_power_of_two
-
-
-def check_positive_int(name: str, value, lo: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < lo:
-        raise ValueError(f"`{name}` must be an integer >= {lo}, got {value!r}")
-    return int(value)
+from .._validation import (
+    check_positive_int as check_positive_int,
+    check_power_of_two as check_power_of_two,
+)
 
 
 def default_names(n: int) -> tuple[str, ...]:
