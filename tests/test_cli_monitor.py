@@ -185,7 +185,11 @@ def test_same_measure_compares_members_and_their_weights():
     "argv, message",
     [
         (["monitor"], "give --data FILE..."),
-        (["monitor", "--history"], "expected at least one argument"),
+        (["monitor", "--history"], "`--history` needs DIR... or `--db URL --bogie ID`"),
+        (["monitor", "--history", "x", "--bogie", "b"], "`--bogie` needs `--db URL`"),
+        (["monitor", "--history", "x", "--db", "f.db", "--bogie", "b"], "not both"),
+        (["monitor", "--history", "--db", "f.db"], "needs `--bogie ID`"),
+        (["monitor", "--db", "f.db", "--bogie", "b"], "go with `--history`"),
         (["monitor", "--data"], "expected at least one argument"),
         (["monitor", "--data", "missing.csv"], "file 'missing.csv' does not exist"),
         (["monitor", "--data", "a.csv", "--history", "b"], "not allowed with argument"),

@@ -335,6 +335,24 @@ def test_import_then_trend_from_the_database(tmp_path, capsys):
     assert {t["name"] for t in trends} == set(NOMINAL)
 
 
+def test_monitor_history_reads_the_same_trends_from_the_database(tmp_path, capsys):
+    """`monitor --history --db URL --bogie ID` gives what `monitor --history DIR...` gives for
+    the folders imported into that database; an unknown bogie is one line and exit code 2."""
+    db = str(tmp_path / "fleet.db")
+    folders = _folders(tmp_path)
+    assert _exit_code(["fleet", "import", "--db", db, "--bogie", "unit-7", *folders]) == 0
+    from_db, from_folders = tmp_path / "from_db", tmp_path / "from_folders"
+    argv = ["monitor", "--history", "--db", db, "--bogie", "unit-7", "--out", str(from_db)]
+    assert _exit_code(argv) == 0
+    assert _exit_code(["monitor", "--history", *folders, "--out", str(from_folders)]) == 0
+    read = lambda folder: json.loads((folder / "trends.json").read_text())["trends"]
+    trends = [read(from_db), read(from_folders)]
+    assert trends[0] == trends[1] and {t["name"] for t in trends[0]} == set(NOMINAL)
+    capsys.readouterr()
+    assert _exit_code(["monitor", "--history", "--db", db, "--bogie", "unit-8"]) == 2
+    assert "'unit-8': no results in" in capsys.readouterr().err
+
+
 def test_import_refuses_bad_folders_before_writing(tmp_path, capsys):
     db = tmp_path / "fleet.db"
     folders = _folders(tmp_path)

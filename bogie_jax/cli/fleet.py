@@ -105,6 +105,16 @@ def _fleet():
     return fleet
 
 
+def open_fleet_store(url: str):
+    """The fleet database at `url`, opened for reading (`UsageError` if it is not there, out
+    of reach or of a newer schema)."""
+    fleet = _fleet()
+    try:
+        return fleet.open_store(url, create=False)
+    except fleet.StoreError as e:
+        raise UsageError(str(e)) from None
+
+
 def run(args, progress) -> int:
     fleet = _fleet()
     handlers = {"run": _run, "import": _import, "trend": _trend, "report": _report}

@@ -25,7 +25,7 @@ from ..io import (
     write_trend_report,
     write_trends,
 )
-from ..monitor import MonitorOptions, ToleranceBand, monitor, same_measure, trend
+from ..monitor import MonitorOptions, band_of_row, comparable_estimates, monitor, trend
 from ._common import UsageError, text_table
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup, names
@@ -51,11 +51,19 @@ def add_parser(sub):
     )
     src.add_argument(
         "--history",
-        nargs="+",
+        nargs="*",
         metavar="DIR",
         default=None,
-        help="earlier output directories or verdicts.json files, oldest first",
+        help="earlier output directories or verdicts.json files, oldest first (none with --db)",
     )
+    p.add_argument(
+        "--db",
+        default=None,
+        metavar="URL",
+        help="--history: read the results of --bogie from a fleet database (a SQLite file or a "
+        "postgresql:// URL; `bogie-jax fleet`) instead of folders",
+    )
+    p.add_argument("--bogie", default=None, metavar="ID", help="--history --db: the bogie's id")
     p.add_argument(
         "--track",
         nargs="+",
@@ -108,6 +116,8 @@ def add_parser(sub):
 
 
 def run(args, progress) -> int:
+    if args.history is None and (args.db is not None or args.bogie is not None):
+        raise UsageError("`--db` and `--bogie` go with `--history`")
     if args.data is None and args.history is None:
         raise UsageError(
             "give --data FILE... (measurement files to judge) or --history DIR... (earlier "
@@ -233,13 +243,7 @@ def history_trends(records, false_alarm_rate):
         units = {row["unit"] for _, row in rows}
         if len(units) > 1:
             raise ValueError(f"mixed layouts: `{name}` has units {', '.join(sorted(units))}")
-        known = [
-            (d, row) for d, row in rows if row["estimate"] is not None and row.get("std_error")
-        ]
-        reference = _weights(known[-1][1]) if known else None
-        alike = [same_measure(_weights(row), reference) for _, row in known]
-        other = [d for (d, _), same in zip(known, alike) if not same]
-        known = [item for item, same in zip(known, alike) if same]
+        known, other = comparable_estimates(rows)
         if other:
             left_out.append(
                 f"{name}: left out {', '.join(other)}: there its estimate weighed the members "
@@ -248,11 +252,7 @@ def history_trends(records, false_alarm_rate):
         if len(known) < 2:
             skipped.append(name)
             continue
-        b = known[-1][1]["tolerance_band"]
-        band = ToleranceBand(
-            tuple(b["healthy"]), unit=b.get("unit", ""), failed_below=b.get("failed_below"),
-            failed_above=b.get("failed_above"),
-        )  # fmt: skip
+        band = band_of_row(known[-1][1])
         t = trend(
             name,
             [d for d, _ in known],
@@ -263,10 +263,6 @@ def history_trends(records, false_alarm_rate):
         )
         trends.append((t, units.pop(), band, other))
     return trends, skipped, left_out
-
-
-def _weights(row):
-    return (row.get("evidence") or {}).get("member_weights")
 
 
 def _trend_figure(path, trends):
@@ -288,9 +284,30 @@ def _trend_figure(path, trends):
     plt.close(fig)
 
 
+def _history_records(args) -> list[dict]:
+    """The `verdicts.json` records of `--history DIR...`, or of `--bogie` in `--db`."""
+    if args.db is None:
+        if args.bogie is not None:
+            raise UsageError("`--bogie` needs `--db URL`")
+        if not args.history:
+            raise UsageError("`--history` needs DIR... or `--db URL --bogie ID`")
+        return [read_verdicts(p) for p in args.history]
+    if args.history:
+        raise UsageError("give `--history DIR...` or `--history --db URL --bogie ID`, not both")
+    if args.bogie is None:
+        raise UsageError("`--history --db URL` needs `--bogie ID`")
+    from .fleet import open_fleet_store
+
+    with open_fleet_store(args.db) as store:
+        rows = store.judgements(args.bogie)
+    if not rows:
+        raise UsageError(f"`--bogie` {args.bogie!r}: no results in {args.db}")
+    return [dict(r["record"], path=f"{args.db} ({args.bogie}, {r['date']})") for r in rows]
+
+
 def run_history(args, progress) -> int:
     try:
-        records = [read_verdicts(p) for p in args.history]
+        records = _history_records(args)
         trends, skipped, left_out = history_trends(records, args.false_alarm_rate)
     except ValueError as e:  # unreadable, unsorted or duplicate dates, mixed layouts, bad band
         raise UsageError(str(e)) from None

@@ -5,7 +5,7 @@ rule `bogie-jax monitor --history` applies to output folders."""
 
 import dataclasses
 
-from ..monitor import ToleranceBand, Trend, same_measure, trend
+from ..monitor import ToleranceBand, Trend, band_of_row, comparable_estimates, trend
 
 
 @dataclasses.dataclass(frozen=True)
@@ -22,35 +22,12 @@ class ElementTrend:
     trend: Trend | None
 
 
-def _band(row) -> ToleranceBand:
-    b = row["tolerance_band"]
-    return ToleranceBand(
-        tuple(b["healthy"]),
-        unit=b.get("unit", ""),
-        failed_below=b.get("failed_below"),
-        failed_above=b.get("failed_above"),
-    )
-
-
-def _weights(row):
-    return (row.get("evidence") or {}).get("member_weights")
-
-
-def _comparable(rows):
-    """The rows with an estimate and a standard error that measure what the latest does."""
-    known = [(d, r) for d, r in rows if r.get("estimate") is not None and r.get("std_error")]
-    if not known:
-        return []
-    reference = _weights(known[-1][1])
-    return [(d, r) for d, r in known if same_measure(_weights(r), reference)]
-
-
 def _series(name, rows, bogie_id, false_alarm_rate) -> ElementTrend:
     latest = rows[-1][1]
     points = tuple(
         (d, r.get("estimate"), *(r.get("ci95") or (None, None)), r["verdict"]) for d, r in rows
     )
-    known = _comparable(rows)
+    known, _ = comparable_estimates(rows)
     fitted = None
     if len(known) >= 2:
         fitted = trend(
@@ -59,9 +36,9 @@ def _series(name, rows, bogie_id, false_alarm_rate) -> ElementTrend:
             [r["estimate"] for _, r in known],
             [r["std_error"] for _, r in known],
             false_alarm_rate=false_alarm_rate,
-            band=_band(known[-1][1]),
+            band=band_of_row(known[-1][1]),
         )
-    return ElementTrend(bogie_id, name, latest.get("unit", ""), _band(latest), points, fitted)
+    return ElementTrend(bogie_id, name, latest.get("unit", ""), band_of_row(latest), points, fitted)
 
 
 def element_trends(bogie_id: str, records, false_alarm_rate: float = 0.05) -> list[ElementTrend]:

@@ -87,7 +87,12 @@ from ._track_error import (
     record_error as record_error,
     track_error_effect as track_error_effect,
 )
-from ._trend import Trend as Trend, trend as trend
+from ._trend import (
+    Trend as Trend,
+    band_of_row as band_of_row,
+    comparable_estimates as comparable_estimates,
+    trend as trend,
+)
 from ._verdict import (
     VERDICTS as VERDICTS,
     WATCH_NOTE as WATCH_NOTE,

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from ..identify import two_sided_p_value
+from ._elements import same_measure
 from ._verdict import ToleranceBand, check_false_alarm_rate
 
 
@@ -154,3 +155,29 @@ def _days_to_edge(level: float, slope: float, band: ToleranceBand | None) -> flo
     edge = lo if slope < 0 else hi
     days = (edge - level) / slope
     return float(max(days, 0.0))
+
+
+def band_of_row(row) -> ToleranceBand:
+    """The tolerance band of one `verdicts.json` row (its `tolerance_band` object)."""
+    b = row["tolerance_band"]
+    return ToleranceBand(
+        tuple(b["healthy"]),
+        unit=b.get("unit", ""),
+        failed_below=b.get("failed_below"),
+        failed_above=b.get("failed_above"),
+    )
+
+
+def comparable_estimates(rows):
+    """Of one element's `(date, verdicts.json row)` pairs in date order, those a trend may use:
+    each with an estimate and a standard error and, for a group, weighing its members as the
+    latest of them does (`same_measure`). Returns `(kept, left_out)`: the pairs kept and the
+    dates of the estimates left out for weighing the members otherwise."""
+    known = [(d, r) for d, r in rows if r.get("estimate") is not None and r.get("std_error")]
+    if not known:
+        return [], []
+    weights = lambda row: (row.get("evidence") or {}).get("member_weights")
+    reference = weights(known[-1][1])
+    same = [same_measure(weights(row), reference) for _, row in known]
+    kept = [item for item, alike in zip(known, same) if alike]
+    return kept, [d for (d, _), alike in zip(known, same) if not alike]
