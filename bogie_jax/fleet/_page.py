@@ -209,8 +209,8 @@ def fleet_page(store: FleetStore, *, false_alarm_rate: float = 0.05) -> str:
 <body data-ready="no">
 <h1>Fleet report</h1>
 <p>{len(f.latest)} bogies, {len(f.judgements)} judgements, from {escape(store.where)};
-written {now}. Verdicts and intervals as <code>bogie-jax monitor</code> gives them (README,
-"Verdicts and trends").</p>
+written {now}. Verdicts and intervals as <code>bogie-jax monitor</code> gives them (the verdict
+rules: docs/monitoring.md of bogie_jax).</p>
 {_legend()}
 <h2 id="alarms-and-watches">Alarms and watches (latest judgement of each bogie)</h2>
 {_alarms(f)}
