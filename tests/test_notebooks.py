@@ -10,12 +10,9 @@ from nbclient import NotebookClient
 
 
 NOTEBOOKS = sorted((Path(__file__).parents[1] / "notebooks").glob("*.ipynb"))
-CELL_TIMEOUT = 900  # [s] one cell; a whole notebook should take under 3 minutes (README)
-# The suite runs every notebook in a kernel except 03 (140-146 s alone, most of it compiling four
-# programs), which runs with `pytest -m heavy` (README, "Tests"): in the full suite it took 234 s
-# and the suite 1116 s locally, too close to the 20 minutes on CI. The others took 53 s, 43 s, 91 s
-# and 93 s alone (01, 02, 04, 05; cold, 2026-11-26/27, 2-core CPU) and 85 s, 57 s, 143 s and
-# 133 s in the full suite of 1116 s.
+CELL_TIMEOUT = 900  # [s] one cell; a whole notebook should take under 3 minutes
+# The suite runs every notebook in a kernel except 03 (most of its time is compiling four
+# programs), which runs with `pytest -m heavy` (docs/development.md).
 HEAVY_KERNEL_RUNS = ("03_gradients.ipynb",)
 assert set(HEAVY_KERNEL_RUNS) <= {p.name for p in NOTEBOOKS}, "a heavy notebook that is not there"
 KERNEL_RUNS = [
