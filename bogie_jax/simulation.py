@@ -11,7 +11,15 @@ import optimistix as optx
 
 from ._precision import warn_if_float32
 from ._validation import check_positive_int, check_range
-from .model import N_DOF, accelerations, build_model, static_equilibrium_solve, vector_field
+from .contact import ProfileGeometry
+from .model import (
+    N_DOF,
+    accelerations,
+    beyond_contact_table,
+    build_model,
+    static_equilibrium_solve,
+    vector_field,
+)
 from .params import BogieParams, ModelOptions
 from .runtime.solve_settings import (
     SolveSettings as SolveSettings,
@@ -132,6 +140,12 @@ def _vector_field_in_window_time(tau, y, args):
     return vector_field(first + tau, y, model)
 
 
+def _beyond_table_in_window_time(tau, y, args, **kwargs):
+    """`beyond_contact_table` at model time t = first + tau: a `diffrax.Event` condition."""
+    model, first = args
+    return beyond_contact_table(first + tau, y, model)
+
+
 def sample_accelerations(model, ts, q, qd):
     """q_ddot (n, 10) at the samples `ts` [s] from the equations of motion (paper eq. 11).
 
@@ -231,6 +245,7 @@ def _simulate_compiled(
     ts = first + window_ts
     tau0 = -lead_in / speed
     model = build_model(params, speed=speed, track=track, options=options)
+    table = isinstance(model.constants.geometry, ProfileGeometry)  # a stop where the table ends
     rest = None
     if y0 is None:
         rest = static_equilibrium_solve(params, options=options, throw=settings.throw)
@@ -248,9 +263,12 @@ def _simulate_compiled(
         adjoint=settings.adjoint,
         max_steps=settings.max_steps,
         throw=settings.throw,
+        event=dfx.Event(_beyond_table_in_window_time) if table else None,
     )
     q, qd = solution.ys[:, :N_DOF], solution.ys[:, N_DOF:]
     qdd = sample_accelerations(model, ts, q, qd)
+    if table:  # samples after a stop at the table's edge hold inf (diffrax), never NaN
+        qdd = jnp.where(jnp.isfinite(q).all(axis=1, keepdims=True), qdd, jnp.inf)
     result = solution.result
     if rest is not None:
         at_rest = rest.result == optx.RESULTS.successful

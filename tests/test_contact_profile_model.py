@@ -218,3 +218,22 @@ def test_leaving_the_table_is_a_solve_status_not_a_nan(pair):
     assert np.all(np.isfinite(np.asarray(solution.ys)))
     cone = build_model(manchester_benchmark(), speed=SPEED, track=perfect_track())
     assert not bool(beyond_contact_table(0.0, jnp.asarray(y0), cone))
+
+
+def test_simulate_reports_leaving_the_table_as_its_status(params):
+    """`simulate` on the profile model stops where a wheelset leaves the table: the run's status
+    is `event_occurred` (not successful), the samples after the stop hold inf and none is NaN;
+    a run that stays inside the table is successful and finite."""
+    from bogie_jax import simulate
+
+    y0 = np.zeros(20)
+    y0[6:8] = 10e-3
+    y0[16:18] = 1.5  # 1.5 m/s outwards: past the 12 mm table within a few milliseconds
+    kwargs = dict(speed=SPEED, duration=0.2, sample_rate=200.0)
+    thrown = simulate(params, perfect_track(), y0=y0, **kwargs)
+    assert thrown.result == diffrax.RESULTS.event_occurred and not bool(thrown.successful)
+    for samples in (thrown.q, thrown.qd, thrown.qdd):
+        assert not np.isnan(np.asarray(samples)).any()
+    assert 0 < int(np.isfinite(np.asarray(thrown.q)).all(axis=1).sum()) < len(thrown.ts)
+    calm = simulate(params, perfect_track(), **kwargs)
+    assert bool(calm.successful) and np.isfinite(np.asarray(calm.qdd)).all()
