@@ -19,13 +19,18 @@ import numpy as np
 from ..io import (
     check_date,
     load_measurement,
-    load_track,
-    load_track_csv,
+    load_run_tracks,
     read_verdicts,
     write_trend_report,
     write_trends,
 )
-from ..monitor import MonitorOptions, band_of_row, comparable_estimates, monitor, trend
+from ..monitor import (
+    MonitorOptions,
+    band_of_row,
+    comparable_estimates,
+    monitor,
+    trend_of_rows,
+)
 from ._common import UsageError, text_table
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup, names
@@ -135,23 +140,6 @@ def run(args, progress) -> int:
 # --- --data ----------------------------------------------------------------------------------
 
 
-def _tracks(args, measurements):
-    if args.track is not None:
-        if len(args.track) not in (1, len(measurements)):
-            raise UsageError(
-                f"`--track` gives {len(args.track)} files for {len(measurements)} data files: "
-                "give one for all runs or one per file"
-            )
-        files = args.track * len(measurements) if len(args.track) == 1 else args.track
-        return [load_track_csv(f) for f in files]
-    tracks = []
-    for f, m in zip(args.data, measurements):
-        if m.track is None:
-            raise UsageError(f"`--data` file {f!r} stores no track reference: give `--track`")
-        tracks.append(load_track(m.track))
-    return tracks
-
-
 def run_data(args, progress) -> int:
     date = _date(args.date)
     for f in args.data + (args.track or []):
@@ -160,7 +148,7 @@ def run_data(args, progress) -> int:
     params = lookup("vehicle", args.vehicle)()
     try:
         measurements = [load_measurement(f) for f in args.data]
-        tracks = _tracks(args, measurements)
+        tracks = load_run_tracks(args.data, measurements, args.track)
     except ValueError as e:  # MeasurementError, a bad track file
         raise UsageError(str(e)) from None
     for f, m in zip(args.data, measurements):
@@ -252,16 +240,8 @@ def history_trends(records, false_alarm_rate):
         if len(known) < 2:
             skipped.append(name)
             continue
-        band = band_of_row(known[-1][1])
-        t = trend(
-            name,
-            [d for d, _ in known],
-            [row["estimate"] for _, row in known],
-            [row["std_error"] for _, row in known],
-            false_alarm_rate=false_alarm_rate,
-            band=band,
-        )
-        trends.append((t, units.pop(), band, other))
+        t = trend_of_rows(name, known, false_alarm_rate)
+        trends.append((t, units.pop(), band_of_row(known[-1][1]), other))
     return trends, skipped, left_out
 
 

@@ -2,23 +2,11 @@
 `bogie_jax.monitor.monitor`. Returns the `verdicts.json` record (`bogie_jax.io`), the same
 object `bogie-jax monitor --data` writes and `fleet import` reads."""
 
-from ..io import load_measurement, load_track, load_track_csv, verdicts_record
+from ..io import load_measurement, load_run_tracks, verdicts_record
 from ..monitor import MonitorOptions, monitor
 from ..params import PARAMETER_SETS
 from ..sensitivity import sensor_layouts
 from ._task import JudgeTask
-
-
-def _tracks(task: JudgeTask, measurements):
-    if task.tracks:
-        files = task.tracks * len(measurements) if len(task.tracks) == 1 else task.tracks
-        return [load_track_csv(f) for f in files]
-    tracks = []
-    for f, m in zip(task.files, measurements):
-        if m.track is None:
-            raise ValueError(f"{f} stores no track reference: give `tracks` in the inventory")
-        tracks.append(load_track(m.track))
-    return tracks
 
 
 def _monitor_options(s) -> MonitorOptions:
@@ -37,7 +25,7 @@ def judge_visit(task: JudgeTask) -> dict:
     params = PARAMETER_SETS[task.vehicle]()
     sensors = sensor_layouts(params)[task.layout]
     measurements = [load_measurement(f, sensors=sensors) for f in task.files]
-    tracks = _tracks(task, measurements)
+    tracks = load_run_tracks(task.files, measurements, task.tracks)
     result = monitor(measurements, tracks, params=params, options=_monitor_options(task.settings))
     source = f"bogie-jax fleet run: {task.bogie_id} on {task.date}"
     return verdicts_record(

@@ -5,7 +5,7 @@ rule `bogie-jax monitor --history` applies to output folders."""
 
 import dataclasses
 
-from ..monitor import ToleranceBand, Trend, band_of_row, comparable_estimates, trend
+from ..monitor import ToleranceBand, Trend, band_of_row, comparable_estimates, trend_of_rows
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,16 +28,7 @@ def _series(name, rows, bogie_id, false_alarm_rate) -> ElementTrend:
         (d, r.get("estimate"), *(r.get("ci95") or (None, None)), r["verdict"]) for d, r in rows
     )
     known, _ = comparable_estimates(rows)
-    fitted = None
-    if len(known) >= 2:
-        fitted = trend(
-            name,
-            [d for d, _ in known],
-            [r["estimate"] for _, r in known],
-            [r["std_error"] for _, r in known],
-            false_alarm_rate=false_alarm_rate,
-            band=band_of_row(known[-1][1]),
-        )
+    fitted = trend_of_rows(name, known, false_alarm_rate) if len(known) >= 2 else None
     return ElementTrend(bogie_id, name, latest.get("unit", ""), band_of_row(latest), points, fitted)
 
 

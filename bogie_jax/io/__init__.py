@@ -15,6 +15,7 @@ from ._report import (
     write_verdicts as write_verdicts,
 )
 from ._track_csv import (
+    load_run_tracks as load_run_tracks,
     load_track as load_track,
     load_track_csv as load_track_csv,
     save_track_csv as save_track_csv,

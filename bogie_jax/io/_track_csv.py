@@ -108,3 +108,25 @@ def load_track(reference: TrackReference) -> TrackIrregularity:
     if not os.path.isfile(reference.file):
         raise ValueError(f"`track` file {reference.file!r} does not exist")
     return load_track_csv(reference.file)
+
+
+def load_run_tracks(data_files, measurements, track_files=None) -> list[TrackIrregularity]:
+    """One track per measured run: `track_files` (CSV; one for all runs or one per run), or else
+    each measurement's own track reference (`data_files` name the runs in the errors).
+
+    **Raises:** `ValueError` for a wrong number of track files, a run without a track
+    reference, and what `load_track_csv` raises."""
+    if track_files:
+        if len(track_files) not in (1, len(measurements)):
+            raise ValueError(
+                f"{len(track_files)} track files for {len(measurements)} runs: give one for all "
+                "runs or one per run"
+            )
+        files = list(track_files) * len(measurements) if len(track_files) == 1 else track_files
+        return [load_track_csv(f) for f in files]
+    tracks = []
+    for f, m in zip(data_files, measurements):
+        if m.track is None:
+            raise ValueError(f"{f!r} stores no track reference: give its track file")
+        tracks.append(load_track(m.track))
+    return tracks

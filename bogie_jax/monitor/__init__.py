@@ -92,6 +92,7 @@ from ._trend import (
     band_of_row as band_of_row,
     comparable_estimates as comparable_estimates,
     trend as trend,
+    trend_of_rows as trend_of_rows,
 )
 from ._verdict import (
     VERDICTS as VERDICTS,

@@ -181,3 +181,16 @@ def comparable_estimates(rows):
     same = [same_measure(weights(row), reference) for _, row in known]
     kept = [item for item, alike in zip(known, same) if alike]
     return kept, [d for (d, _), alike in zip(known, same) if not alike]
+
+
+def trend_of_rows(name: str, rows, false_alarm_rate: float = 0.05) -> Trend:
+    """`trend` of one element over `(date, verdicts.json row)` pairs that `comparable_estimates`
+    kept (two or more), judged against the band of the latest."""
+    return trend(
+        name,
+        [d for d, _ in rows],
+        [row["estimate"] for _, row in rows],
+        [row["std_error"] for _, row in rows],
+        false_alarm_rate=false_alarm_rate,
+        band=band_of_row(rows[-1][1]),
+    )
