@@ -46,12 +46,9 @@ def read_inventory(path) -> Inventory:
     fmt = data.get("format")
     if fmt != INVENTORY_FORMAT:
         raise InventoryError(f"{path}: `format` = {fmt!r} must be {INVENTORY_FORMAT!r}")
-    unknown = set(data) - {"format", "defaults", "monitor", "bogie"}
-    if unknown:
-        raise InventoryError(
-            f"{path}: unknown top-level key(s) {', '.join(sorted(unknown))}; valid: format, "
-            "defaults, monitor, bogie"
-        )
+    _check_keys(
+        f"{path}: unknown top-level key(s)", data, ("format", "defaults", "monitor", "bogie")
+    )
     defaults = _table(path, data, "defaults")
     settings = _settings(path, _table(path, data, "monitor"), defaults.get("vehicle"))
     rows = data.get("bogie")
@@ -77,14 +74,16 @@ def _check_unique(path, values, what) -> None:
         seen.add(v)
 
 
-def _settings(path, table, vehicle) -> MonitorSettings:
-    known = {f.name for f in dataclasses.fields(MonitorSettings)}
-    extra = set(table) - known
+def _check_keys(what: str, table: dict, valid) -> None:
+    """`InventoryError` "`what` K1, K2; valid: ..." when `table` has keys outside `valid`."""
+    extra = set(table) - set(valid)
     if extra:
-        raise InventoryError(
-            f"{path}: unknown key(s) in [monitor]: {', '.join(sorted(extra))}; valid: "
-            f"{', '.join(sorted(known))}"
-        )
+        raise InventoryError(f"{what} {', '.join(sorted(extra))}; valid: {', '.join(valid)}")
+
+
+def _settings(path, table, vehicle) -> MonitorSettings:
+    known = sorted(f.name for f in dataclasses.fields(MonitorSettings))
+    _check_keys(f"{path}: unknown key(s) in [monitor]:", table, known)
     alpha = _number(path, table, "false_alarm_rate", 0.05, 0.0, 0.5, "in (0, 0.5)", open_lo=True)
     track = _number(path, table, "track_error_mm", 0.0, 0.0, 10.0, "in [0, 10] mm")
     band = table.get("band")
@@ -116,12 +115,7 @@ def _bogie(path, k, row, defaults) -> BogieEntry:
     where = f"{path}: bogie {k + 1}"
     if not isinstance(row, dict):
         raise InventoryError(f"{where}: must be a table [[bogie]]")
-    extra = set(row) - {"id", "vehicle", "layout", "measurement"}
-    if extra:
-        raise InventoryError(
-            f"{where}: unknown key(s) {', '.join(sorted(extra))}; valid: id, vehicle, layout, "
-            "measurement"
-        )
+    _check_keys(f"{where}: unknown key(s)", row, ("id", "vehicle", "layout", "measurement"))
     bogie_id = row.get("id")
     if not isinstance(bogie_id, str) or not bogie_id.strip():
         raise InventoryError(f"{where}: `id` = {bogie_id!r} must be a non-empty string")
@@ -147,11 +141,7 @@ def _visit(path, where, j, item) -> Visit:
     where = f"{where}, measurement {j + 1}"
     if not isinstance(item, dict):
         raise InventoryError(f"{where}: must be a table [[bogie.measurement]]")
-    extra = set(item) - {"date", "files", "tracks"}
-    if extra:
-        raise InventoryError(
-            f"{where}: unknown key(s) {', '.join(sorted(extra))}; valid: date, files, tracks"
-        )
+    _check_keys(f"{where}: unknown key(s)", item, ("date", "files", "tracks"))
     date = _date(where, item.get("date"))
     files = _paths(path, where, item.get("files"), "files", required=True)
     tracks = _paths(path, where, item.get("tracks", []), "tracks", required=False)
