@@ -115,6 +115,7 @@ class TrackErrorEffect(NamedTuple):
     misfit_ss: float  # mean |(I - J J^+) dr|^2: the residual SS it leaves
     bias_by_step: np.ndarray  # (steps, n): the bias after each refit step
     refit_draws: int  # realisations whose every refit step solved (the bias's mean)
+    misfits: np.ndarray  # (draws, m): each draw's (I - J J^+) dr, in the fit's weighted rows
 
 
 def track_error_effect(
@@ -156,7 +157,7 @@ def track_error_effect(
             continue
         change = r - r0
         first.append(-pinv @ change)
-        misfit.append(float(np.sum((change - j0 @ (pinv @ change)) ** 2)))
+        misfit.append(change - j0 @ (pinv @ change))
         path, x = [], phi
         for step in range(refit_steps):
             if step:
@@ -170,9 +171,10 @@ def track_error_effect(
     n = j0.shape[1]
     by_step = np.mean(refit, axis=0) if refit else np.full((refit_steps, n), np.nan)
     if not first:
-        return TrackErrorEffect(np.full((n, n), np.nan), by_step[-1], 0, np.nan, by_step, 0)
-    s = np.array(first)
+        none = np.zeros((0, r0.size))
+        return TrackErrorEffect(np.full((n, n), np.nan), by_step[-1], 0, np.nan, by_step, 0, none)
+    s, misfits = np.array(first), np.array(misfit)
     return TrackErrorEffect(
-        s.T @ s / len(first), by_step[-1], len(first), float(np.mean(misfit)), by_step,
-        len(refit),
+        s.T @ s / len(first), by_step[-1], len(first), float(np.mean(np.sum(misfits**2, axis=1))),
+        by_step, len(refit), misfits,
     )  # fmt: skip
