@@ -9,13 +9,14 @@ demo reuses the simulation and residual-Jacobian programs the module's `monitor`
 
 import json
 import math
+import types
 
 import numpy as np
 import pytest
 
 from bogie_jax.cli import main
 from bogie_jax.io import read_verdicts, write_report, write_verdicts
-from bogie_jax.monitor import ToleranceBand, decision_z, judge, same_measure
+from bogie_jax.monitor import DEFAULT_CANDIDATES, ToleranceBand, decision_z, judge, same_measure
 from bogie_jax.params import manchester_benchmark
 
 
@@ -284,3 +285,78 @@ def test_report_marks_an_element_on_watch(tmp_path):
     assert "Watch: `yaw_dampers.left.c` (95 % interval above its band)" in text
     assert "| `yaw_dampers.left.c` | healthy\\* |" in text
     assert "\\* watch: the 95 % interval lies outside the healthy band" in text
+
+
+# --- --candidates and --list-elements ----------------------------------------------------------
+
+
+class _Captured(Exception):
+    """Raised by the stand-in `monitor` once it has the options (no fit is run)."""
+
+
+def _capture_monitor(monkeypatch, module):
+    """Replace `monitor` in `bogie_jax.cli.<module>` by one that keeps its options and raises
+    `_Captured`; returns the list the options go to."""
+    seen = []
+
+    def fake(measurements, tracks, *, params, options, progress=None):
+        seen.append(options)
+        raise _Captured
+
+    monkeypatch.setattr(f"bogie_jax.cli.{module}.monitor", fake)
+    return seen
+
+
+@pytest.mark.parametrize("command", ["monitor", "demo"])
+def test_list_elements_prints_names_and_compiles_nothing(command, monkeypatch, capsys):
+    seen = _capture_monitor(monkeypatch, command)
+    monkeypatch.setattr("bogie_jax.cli.demo.scenario_measurements", None)  # never called
+    assert _exit_code([command, "--list-elements"]) == 0
+    lines = capsys.readouterr().out.splitlines()[1:]  # after the "what it runs on" line
+    marked = {line.split()[0] for line in lines if line.split()[1:] == ["default"]}
+    assert marked == set(DEFAULT_CANDIDATES) and not seen
+    names = {line.split()[0] for line in lines}
+    assert {"yaw_dampers.c", "primary.1L.kx", "secondary.left.kz"} <= names
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--candidates", "primary.1L.kzz"], "did you mean primary.1L.kz"),
+        (["--candidates", "primary.3L.kz"], "unknown element '3L' in parameter 'primary.3L.kz'"),
+        (["--candidates", "yaw_dampers.c", "yaw_dampers.c"], "`--candidates` repeats"),
+    ],
+)
+@pytest.mark.parametrize("command", ["monitor", "demo"])
+def test_bad_candidates_exit_2_before_anything_runs(command, argv, message, tmp_path, capsys):
+    data = ["--data", str(tmp_path / "missing.csv")] if command == "monitor" else []
+    assert _exit_code([command, *data, *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "`--candidates`" in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_candidates_go_with_data_only(capsys):
+    assert _exit_code(["monitor", "--history", "x", "--candidates", "yaw_dampers.c"]) == 2
+    assert "`--candidates` goes with `--data`" in capsys.readouterr().err
+
+
+CHOSEN = ["yaw_dampers.c", "primary.1L.kz"]
+
+
+def test_monitor_candidates_reach_the_options(tmp_path, monkeypatch):
+    seen = _capture_monitor(monkeypatch, "monitor")
+    a = _blank_file(tmp_path / "a.csv")
+    with pytest.raises(_Captured):
+        main(["monitor", "--data", a, "--candidates", *CHOSEN, "--out", str(tmp_path / "o")])
+    assert seen[0].candidates == tuple(CHOSEN)
+
+
+def test_demo_candidates_reach_the_options(tmp_path, monkeypatch):
+    seen = _capture_monitor(monkeypatch, "demo")
+    blank = lambda *a, **k: [types.SimpleNamespace(track=None)]
+    monkeypatch.setattr("bogie_jax.cli.demo.scenario_measurements", blank)
+    monkeypatch.setattr("bogie_jax.cli.demo.recorded_track", lambda *a, **k: None)
+    with pytest.raises(_Captured):
+        main(["demo", "--noise", "0", "--candidates", *CHOSEN, "--out", str(tmp_path / "o")])
+    assert seen[0].candidates == tuple(CHOSEN)

@@ -10,6 +10,9 @@ that RMS (the cross level to the level difference of the two rails over the cont
 2 b_0): an error spectrum shaped like the track's (`bogie_jax.monitor.recorded_track`). The
 demo knows that error's level and passes it to `monitor` (`track_error`), which carries it
 into the intervals.
+
+`--candidates NAME...` chooses the elements judged; `--list-elements` prints the names it takes
+and exits (`_candidates.py`).
 """
 
 import datetime
@@ -29,6 +32,7 @@ from ..monitor import (
     scenario_measurements,
 )
 from ..params import get_parameter, manchester_benchmark
+from ._candidates import add_options, check_candidates, list_elements
 from ._common import UsageError, split_names
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup, names
@@ -91,10 +95,13 @@ def add_parser(sub):
         help="probability of any false alarm on a healthy bogie (default 0.05)",
     )
     p.add_argument("--date", default=None, help="date of the run, YYYY-MM-DD (default today)")
+    add_options(p)
     return p
 
 
-def _check(args):
+def _check(args, params):
+    """Every check that needs no evaluation; returns (scenario, runs, date, candidates)."""
+    candidates = check_candidates(params, args.candidates)
     try:
         speeds = [float(s) for s in split_names(args.speeds)]
     except ValueError:
@@ -131,7 +138,7 @@ def _check(args):
             )
     except ValueError as e:
         raise UsageError(str(e)) from None
-    return scenario, runs, date
+    return scenario, runs, date, candidates
 
 
 def _truth(scenario, params) -> dict:
@@ -171,8 +178,11 @@ def truth_check(result, scenario, params) -> str:
 
 
 def run(args, progress) -> int:
-    scenario, runs, date = _check(args)
     params = manchester_benchmark()
+    if args.list_elements:
+        progress.say(list_elements(params))
+        return 0
+    scenario, runs, date, candidates = _check(args, params)
     speeds = ", ".join(f"{r.speed:g}" for r in runs)
     progress.say(
         f"demo: {scenario.description or scenario.name}; {len(runs)} runs at {speeds} m/s, "
@@ -207,7 +217,9 @@ def run(args, progress) -> int:
         tracks,
         params=params,
         # the record's error is known here: carried into the intervals
-        options=MonitorOptions(false_alarm_rate=args.false_alarm_rate, track_error=noise_m),
+        options=MonitorOptions(
+            candidates=candidates, false_alarm_rate=args.false_alarm_rate, track_error=noise_m
+        ),
         progress=lambda line: progress.say(f"  {line}"),
     )
     progress.say(verdict_table(result))

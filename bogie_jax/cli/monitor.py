@@ -6,6 +6,8 @@ every element over earlier results.
   writes `verdicts.json` (dated by `--date`), `verdicts.png`, `signals.png` and `report.md`.
 - `--history DIR...`: earlier output directories (or their `verdicts.json` files), in date
   order; per element `bogie_jax.monitor.trend` -> `trends.json`, `trends.png`, `trends.md`.
+- `--candidates NAME...` (with `--data`): the elements judged; `--list-elements` prints the
+  names it takes and exits (`_candidates.py`).
 
 Without `--data` or `--history` there is nothing to judge: the command says so (exit code 2)
 and points at `bogie-jax demo`, which runs the built-in case.
@@ -31,6 +33,7 @@ from ..monitor import (
     monitor,
     trend_of_rows,
 )
+from ._candidates import add_options, check_candidates, list_elements
 from ._common import UsageError, text_table
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup, names
@@ -117,16 +120,24 @@ def add_parser(sub):
         default=None,
         help="--data: covariance rule (default sandwich, gauss-newton with --track-error)",
     )
+    add_options(p)
     return p
 
 
 def run(args, progress) -> int:
+    if args.list_elements:
+        progress.say(list_elements(lookup("vehicle", args.vehicle)()))
+        return 0
     if args.history is None and (args.db is not None or args.bogie is not None):
         raise UsageError("`--db` and `--bogie` go with `--history`")
     if args.data is None and args.history is None:
         raise UsageError(
             "give --data FILE... (measurement files to judge) or --history DIR... (earlier "
             "outputs to trend); `bogie-jax demo` runs the built-in case"
+        )
+    if args.data is None and args.candidates is not None:
+        raise UsageError(
+            "`--candidates` goes with `--data` (a trend follows the results' elements)"
         )
     if not 0 < args.false_alarm_rate < 0.5:
         raise UsageError(f"`--false-alarm-rate` = {args.false_alarm_rate!r} must lie in (0, 0.5)")
@@ -142,10 +153,11 @@ def run(args, progress) -> int:
 
 def run_data(args, progress) -> int:
     date = _date(args.date)
+    params = lookup("vehicle", args.vehicle)()
+    candidates = check_candidates(params, args.candidates)
     for f in args.data + (args.track or []):
         if not Path(f).is_file():
             raise UsageError(f"file {f!r} does not exist")
-    params = lookup("vehicle", args.vehicle)()
     try:
         measurements = [load_measurement(f) for f in args.data]
         tracks = load_run_tracks(args.data, measurements, args.track)
@@ -159,6 +171,7 @@ def run_data(args, progress) -> int:
         )
     try:
         options = MonitorOptions(
+            candidates=candidates,
             band=args.band,
             false_alarm_rate=args.false_alarm_rate,
             track_error=1e-3 * args.track_error,
