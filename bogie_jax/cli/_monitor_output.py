@@ -8,7 +8,7 @@ import numpy as np
 from ..cost import window_lead_in
 from ..io import verdicts_record, write_report, write_verdicts
 from ..measure import sensors_from_layout, synthetic_measurement
-from ..monitor import WATCH_NOTE, misfit_warning, verdict_label
+from ..monitor import WATCH_NOTE, misfit_warning, not_explained_warning, verdict_label
 from ..params import get_parameter, set_parameters
 from ._common import text_table
 
@@ -77,6 +77,8 @@ def verdict_table(result) -> str:
     notes = [WATCH_NOTE] if result.watches else []
     warning = misfit_warning(result.fit.misfit_ratio)
     notes += [warning] if warning else []
+    if not result.explained:
+        notes.append(not_explained_warning(result.goodness))
     return "\n".join([text_table(rows), *notes])
 
 

@@ -11,6 +11,10 @@ every element over earlier results.
 
 Without `--data` or `--history` there is nothing to judge: the command says so (exit code 2)
 and points at `bogie-jax demo`, which runs the built-in case.
+
+Exit codes of `--data`: 0 verdicts written; 1 every run's simulation failed; 2 bad input;
+`NOT_EXPLAINED` (3) verdicts written, but the fit does not explain the data in some run and
+channel group (`MonitorResult.explained`: the verdicts, the table and the report say where).
 """
 
 import math
@@ -37,6 +41,9 @@ from ._candidates import add_options, check_candidates, list_elements
 from ._common import UsageError, text_table
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup, names
+
+
+NOT_EXPLAINED = 3  # exit code: the verdicts are written, but the data are not explained
 
 
 def add_parser(sub):
@@ -198,7 +205,7 @@ def run_data(args, progress) -> int:
         extra={"data": list(args.data)}, progress=progress,
     )  # fmt: skip
     progress.say("wrote " + ", ".join(str(p) for p in paths))
-    return 0
+    return 0 if result.explained else NOT_EXPLAINED
 
 
 def _date(text):

@@ -26,7 +26,7 @@ import math
 import os
 from pathlib import Path
 
-from ..monitor import WATCH_NOTE, misfit_warning, verdict_label
+from ..monitor import WATCH_NOTE, misfit_warning, not_explained_line, verdict_label
 
 
 VERDICTS_FORMAT = "bogie_jax.verdicts/1"
@@ -278,6 +278,9 @@ def write_report(
     warning = misfit_warning((record.get("fit") or {}).get("misfit_ratio"))
     if warning:
         lines += [f"**{warning}.**", ""]
+    unexplained = not_explained_line(record.get("goodness_of_fit"))
+    if unexplained:
+        lines += [f"**{unexplained}.**", ""]
     lines += [*_verdict_table(rows), ""]
     for caption, file in figures:
         lines += [f"![{caption}]({file})", "", f"*{caption}*", ""]

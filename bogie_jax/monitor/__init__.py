@@ -49,6 +49,16 @@ from ._elements import (
     same_measure as same_measure,
 )
 from ._fit import REWEIGHTS as REWEIGHTS, SETTLED as SETTLED
+from ._goodness import (
+    HIGH_BAND_START as HIGH_BAND_START,
+    LOW_BAND as LOW_BAND,
+    GoodnessOfFit as GoodnessOfFit,
+    Misfit as Misfit,
+    channel_groups as channel_groups,
+    goodness_of_fit as goodness_of_fit,
+    not_explained_line as not_explained_line,
+    not_explained_warning as not_explained_warning,
+)
 from ._horizon import (
     HORIZON_START as HORIZON_START,
     horizon_stages as horizon_stages,
@@ -80,6 +90,12 @@ from ._result import (
     MonitorResult as MonitorResult,
     RunStatus as RunStatus,
     misfit_warning as misfit_warning,
+)
+from ._suspects import (
+    Suspect as Suspect,
+    omitted_elements as omitted_elements,
+    recheck_alarm as recheck_alarm,
+    score_tests as score_tests,
 )
 from ._track_error import (
     RecordError as RecordError,

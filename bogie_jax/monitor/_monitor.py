@@ -17,9 +17,12 @@ The steps, each a function that takes what the last one returned:
 6. `_judgement.track_record_term`: the track records' error term and bias (`_track_error.py`);
 7. `_judgement.statistics` and `judge_*`: the covariance by the covariance rule, a verdict per
    coordinate (`_verdict.judge`, profile tests by `_profile.py`);
-8. `summarise`: the `FitSummary` and every run's `RunStatus`.
+8. `_goodness.fit_goodness`: does the fit explain the data, per run and channel group; where
+   it does not, `_suspects.screen` names the elements not judged that would explain it and
+   withholds an alarm that does not hold with them free;
+9. `summarise`: the `FitSummary` and every run's `RunStatus`.
 
-Steps 3 to 8 are numpy on the residuals and Jacobian the one compiled program returns.
+Steps 3 to 9 are numpy on the residuals and Jacobian the one compiled program returns.
 """
 
 import dataclasses
@@ -31,6 +34,7 @@ from ..params import BogieParams, manchester_benchmark
 from ._checks import check_inputs, tolerance_bands
 from ._elements import check_candidates
 from ._fit import fit_runs, fit_stages, member_weights, reweight, select_elements
+from ._goodness import fit_goodness
 from ._judgement import (
     Estimate,
     ProfileTests,
@@ -46,6 +50,7 @@ from ._nuisance import check_nuisance
 from ._options import MonitorOptions
 from ._program import FitSpace, JointProgram, MonitorProblem
 from ._result import FitSummary, MonitorResult, RunStatus
+from ._suspects import screen
 
 
 def monitor(
@@ -98,7 +103,13 @@ def monitor(
     verdicts = judge_coordinates(tests, statuses, stats, weights)
     verdicts += judge_unidentifiable(done.space, statuses, len(coords))
     timings["verdicts_s"] = time.perf_counter() - t0
-    judged = _Judged(coords, fits + done.refits, done, estimate, stats)
+    goodness = fit_goodness(done.space, done.fit, effect)
+    if not goodness.explained:
+        t0 = time.perf_counter()
+        goodness, verdicts = screen(done.space, done.fit, len(coords), verdicts, goodness,
+                                    stats.s2, say)  # fmt: skip
+        timings["suspects_s"] = time.perf_counter() - t0
+    judged = _Judged(coords, fits + done.refits, done, estimate, stats, goodness)
     return summarise(done.space, statuses, tuple(verdicts), judged, reasons, timings | _total(tic))
 
 
@@ -165,6 +176,7 @@ class _Judged:
     reweighted: object  # `_fit.Reweighted`
     estimate: Estimate
     stats: Statistics
+    goodness: object = None  # `_goodness.GoodnessOfFit`
 
 
 def summarise(space: FitSpace, statuses, verdicts, judged, reasons, timings) -> MonitorResult:
@@ -177,6 +189,7 @@ def summarise(space: FitSpace, statuses, verdicts, judged, reasons, timings) -> 
         runs=run_statuses(space, judged, reasons),
         false_alarm_rate=float(p.options.false_alarm_rate),
         timings=timings,
+        goodness=None if judged is None else judged.goodness,
     )
 
 

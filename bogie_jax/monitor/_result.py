@@ -5,6 +5,7 @@ import dataclasses
 import math
 
 from ._elements import ElementStatus
+from ._goodness import GoodnessOfFit, not_explained_warning
 from ._verdict import WATCH_NOTE, Verdict, verdict_label
 
 
@@ -125,7 +126,10 @@ class MonitorResult:
     - `elements`: the identifiability of every candidate (`ElementStatus`);
     - `fit`: `FitSummary`; `runs`: `RunStatus` per measurement; `false_alarm_rate`;
     - `timings` [s]: `first_jacobian_s` (compile and first evaluation of the residual-Jacobian
-      program), `fit_s`, `track_error_s` (with a `track_error`), `verdicts_s`, `total_s`.
+      program), `fit_s`, `track_error_s` (with a `track_error`), `verdicts_s`, `total_s`
+      (`suspects_s` where the data are not explained);
+    - `goodness`: the `GoodnessOfFit` per run and channel group (`_goodness.py`), `None`
+      without a fit; `explained` and `misfits` read it.
     """
 
     verdicts: tuple[Verdict, ...]
@@ -134,6 +138,17 @@ class MonitorResult:
     runs: tuple[RunStatus, ...]
     false_alarm_rate: float
     timings: dict
+    goodness: GoodnessOfFit | None = None
+
+    @property
+    def explained(self) -> bool:
+        """False where the goodness-of-fit test finds data the fit does not explain."""
+        return self.goodness is None or self.goodness.explained
+
+    @property
+    def misfits(self) -> tuple:
+        """The runs and channel groups the fit does not explain (`_goodness.Misfit`)."""
+        return () if self.goodness is None else self.goodness.misfits
 
     def verdict(self, name: str) -> Verdict:
         """The verdict covering `name` (an element, or its group's verdict)."""
@@ -193,6 +208,8 @@ class MonitorResult:
         warning = misfit_warning(self.fit.misfit_ratio)
         if warning:
             rows.append(warning)
+        if not self.explained:
+            rows.append(not_explained_warning(self.goodness))
         left = [r for r in self.runs if not r.used]
         if left:
             rows.append(
@@ -204,7 +221,8 @@ class MonitorResult:
     def to_dict(self) -> dict:
         """JSON-ready: `verdicts` (name, verdict, estimate, std_error, ci95, tolerance_band,
         unit, evidence; `None` for values the data do not determine), `elements`, `fit`,
-        `runs`, `false_alarm_rate`, `timings`; `fit` holds `explains_data` too."""
+        `runs`, `false_alarm_rate`, `timings`; `fit` holds `explains_data` too; `explained`
+        and `goodness_of_fit` (`GoodnessOfFit.to_dict`: the misfits, every test, the suspects)."""
         verdicts = []
         for v in self.verdicts:
             d = v.to_dict()
@@ -219,5 +237,7 @@ class MonitorResult:
                 "runs": [dataclasses.asdict(r) for r in self.runs],
                 "false_alarm_rate": self.false_alarm_rate,
                 "timings": self.timings,
+                "explained": self.explained,
+                "goodness_of_fit": None if self.goodness is None else self.goodness.to_dict(),
             }
         )

@@ -1,0 +1,192 @@
+"""Where the fit does not explain the data (`_goodness.py`): the elements not judged that would
+explain the misfit (suspects), and the alarms that do not hold with them free (withheld).
+
+**Suspects.** Every element of the bogie (`bogie_jax.params.element_names`) that is neither a
+candidate nor a nuisance parameter (nor tied to one) is screened by a score (Lagrange
+multiplier) test of "the element is at its nominal value" at the fit (Rao 1948; e.g. Seber &
+Wild, "Nonlinear Regression", 1989, sec. 5.9): with j its residual column d r / d ln p (one
+evaluation of the residual Jacobian with the omitted elements as extra columns, in the fit's
+weights and bias projection) and j~ = (I - P_J) j its part outside the fitted columns J,
+
+    LM = (j~^T r)^2 / (s^2 |j~|^2),
+
+chi^2_1 under the null, s^2 the fit's residual variance (which holds the misfit: the test is
+conservative). Elements whose columns are zero in the fitted model (a blow-off velocity of a
+linear damper) are not tested. The suspects are ranked by LM; each names the run-groups whose
+excess low-band power (`_goodness.py`) its one Gauss-Newton step removes by half or more. The
+extra evaluation compiles a second residual-Jacobian program (all omitted elements at once), and
+runs only where the data are not explained, so data the model explains pay nothing.
+
+**Withheld alarms.** An element is not called `degraded` or `failed` on a fit that does not
+explain the data unless its test still holds with the top suspects free: the significant
+suspects (p below `alpha` / the number screened; at most `MAX_FREE`, the top one where none is
+significant) are added to the fit as extra columns, linearised at the fit (one Gauss-Newton
+step: the estimate moves by that step, its standard error by the ratio of the Gauss-Newton
+variances with and without the columns), and the element is judged again by the Wald rule at
+the same decision z (`_verdict.judge`, no profile). Where that verdict is no longer the alarm,
+the alarm is withheld: the verdict becomes `not identifiable`, on watch where its 95 % interval
+lies outside the band, with the reason and both estimates in its evidence (`not_explained`).
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import scipy.stats
+
+from ..params import element_names, get_parameter
+from ._elements import tied_group
+from ._goodness import group_excess
+from ._program import JointProgram
+from ._verdict import Verdict, interval_outside, judge
+
+
+MAX_SUSPECTS = 5  # reported
+MAX_FREE = 3  # freed in the test of an alarm
+EXPLAINS = 0.5  # a suspect explains a run-group whose excess it removes by this share
+
+
+@dataclasses.dataclass(frozen=True)
+class Suspect:
+    """An element not judged that would explain the misfit: its score `statistic` (chi^2_1),
+    `p_value`, `change` (relative, one Gauss-Newton step from nominal) and the run-groups it
+    `explains` (`"run k group"`)."""
+
+    name: str
+    statistic: float
+    p_value: float
+    change: float
+    explains: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def omitted_elements(params, candidates, nuisance) -> tuple[str, ...]:
+    """The elements of `params` neither judged nor fitted (nor tied to either), positive."""
+    taken = set(candidates) | set(nuisance)
+    return tuple(
+        e
+        for e in element_names(params)
+        if e not in taken
+        and tied_group(params, e) not in taken
+        and float(np.asarray(get_parameter(params, e))) > 0
+    )
+
+
+def extra_columns(space, fit, names) -> np.ndarray | None:
+    """(m, len(names)) d r / d ln p of the elements `names` at the fit, in its weights and
+    projection (one evaluation of a program with them as extra nuisance columns); `None` if
+    it fails."""
+    p = space.program.problem
+    wider = dataclasses.replace(p, nuisance=p.nuisance + tuple(names))
+    program = JointProgram.build(wider, active=space.program.active)
+    x = space.matrix() @ fit.phi
+    n0 = len(p.candidates) + len(p.nuisance)
+    x = np.concatenate([x[:n0], np.zeros(len(names)), x[n0:]])
+    _, jac = program.evaluate(x)
+    cols = np.where(space.window[:, None], jac[:, n0 : n0 + len(names)], 0.0)
+    if not np.all(np.isfinite(cols)):
+        return None
+    return space.project(cols) * space.rows[:, None]
+
+
+def score_tests(jac, r, columns, s2: float):
+    """(LM (k,), one-step change in ln p (k,), the columns outside J (m, k)) of `columns`."""
+    u, s, _ = np.linalg.svd(jac, full_matrices=False)
+    u = u[:, s > 1e-10 * s.max()] if s.size else u
+    outside = columns - u @ (u.T @ columns)
+    norm2 = np.sum(outside**2, axis=0)
+    ok = norm2 > 1e-12 * np.maximum(np.sum(columns**2, axis=0), 1e-300)
+    score = outside.T @ r
+    lm = np.where(ok, score**2 / (s2 * np.where(ok, norm2, 1.0)), np.nan)
+    step = np.where(ok, -score / np.where(ok, norm2, 1.0), 0.0)
+    return lm, step, outside
+
+
+def _explains(space, r, column, step, goodness) -> tuple[str, ...]:
+    """The rejected run-groups whose excess low-band power the step removes by `EXPLAINS`."""
+    misfits = goodness.misfits
+    p = space.program.problem
+    before = group_excess(r, space.runs(), p.measurements, misfits)
+    after = group_excess(r + column * step, space.runs(), p.measurements, misfits)
+    out = []
+    for t in misfits:
+        key = (t.run, t.group)
+        if key in before and t.ratio > 1:
+            excess = before[key] * (1 - 1 / t.ratio)
+            if before[key] - after[key] >= EXPLAINS * excess:
+                out.append(f"run {t.run} {t.group}")
+    return tuple(out)
+
+
+def find_suspects(space, fit, goodness, s2: float):
+    """`(suspects, their columns (m, k))` ranked by the score statistic (module docstring);
+    `((), None)` where nothing can be screened."""
+    p = space.program.problem
+    names = omitted_elements(p.params, p.candidates, p.nuisance)
+    cols = extra_columns(space, fit, names) if names else None
+    if cols is None or not s2 > 0:
+        return (), None
+    lm, step, outside = score_tests(fit.jac, fit.r, cols, s2)
+    order = [i for i in np.argsort(-np.nan_to_num(lm, nan=-1.0)) if np.isfinite(lm[i])]
+    suspects = []
+    for i in order[:MAX_SUSPECTS]:
+        explains = _explains(space, fit.r, outside[:, i], step[i], goodness)
+        pv = float(scipy.stats.chi2.sf(lm[i], 1))
+        suspects.append(Suspect(names[i], float(lm[i]), pv, math.expm1(step[i]), explains))
+    return tuple(suspects), cols[:, [names.index(s.name) for s in suspects]]
+
+
+def freed(suspects, alpha: float, n_screened: int) -> list[int]:
+    """Indices of the suspects freed in an alarm's test (module docstring)."""
+    level = alpha / max(n_screened, 1)
+    chosen = [i for i, s in enumerate(suspects) if s.p_value <= level][:MAX_FREE]
+    return chosen or ([0] if suspects else [])
+
+
+def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
+    """`verdict` (an alarm on coordinate `index` of `jac`) withheld where it does not hold with
+    `columns` free (module docstring); otherwise kept, with the check in its evidence."""
+    wide = np.column_stack([jac, columns])
+    step = -np.linalg.lstsq(wide, r, rcond=None)[0]
+    var = np.diag(np.linalg.pinv(jac.T @ jac))[index]
+    var_wide = np.diag(np.linalg.pinv(wide.T @ wide))[index]
+    estimate = verdict.estimate * math.exp(step[index])
+    se = verdict.std_error * math.sqrt(var_wide / var) if var > 0 else math.inf
+    again = judge(
+        verdict.name, estimate, se, verdict.band, z=verdict.evidence["z"],
+        dof=verdict.evidence.get("ci95_dof") or math.inf,
+    )  # fmt: skip
+    check = {"estimate": estimate, "std_error": se, "verdict": again.verdict}
+    evidence = dict(verdict.evidence, with_suspects_free=check)
+    if again.verdict in ("degraded", "failed"):
+        return dataclasses.replace(verdict, evidence=evidence)
+    evidence.update(
+        not_explained=True, withheld=verdict.verdict, reason="the fit does not explain the data "
+        f"and, with the suspects free, the data do not put the element outside its band "
+        f"(was {verdict.verdict}: {verdict.evidence.get('reason', '')})",
+    )  # fmt: skip
+    evidence.pop("watch", None)
+    side = interval_outside(verdict.ci95, verdict.band.healthy)
+    if side:
+        evidence["watch"] = side
+    return dataclasses.replace(verdict, verdict="not identifiable", evidence=evidence)
+
+
+def screen(space, fit, n_coords: int, verdicts, goodness, s2: float, say):
+    """The suspects of a fit that does not explain the data, and the verdicts with the alarms
+    that do not hold with them free withheld (module docstring): `(goodness, verdicts)`."""
+    say("the fit does not explain the data: screening the elements not judged")
+    suspects, columns = find_suspects(space, fit, goodness, s2)
+    goodness = dataclasses.replace(goodness, suspects=suspects)
+    if not suspects:
+        return goodness, list(verdicts)
+    p = space.program.problem
+    n = len(omitted_elements(p.params, p.candidates, p.nuisance))
+    free = columns[:, freed(suspects, p.options.false_alarm_rate, n)]
+    out = list(verdicts)
+    for j, v in enumerate(out[:n_coords]):
+        if v.verdict in ("degraded", "failed"):
+            out[j] = recheck_alarm(v, j, fit.jac, fit.r, free)
+    return goodness, out
