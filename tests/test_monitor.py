@@ -411,6 +411,28 @@ def test_monitor_raises_no_alarm_on_a_healthy_bogie(healthy):
     assert statuses <= {"alone", "group", "none"}
 
 
+def test_monitor_names_data_it_does_not_explain_and_withholds_alarms():
+    """A failed secondary vertical damper (not a candidate): the fit does not explain the data,
+    the result says where (the frame's vertical channels among them) and names the damper among
+    the suspects; an alarm is kept only where it holds with the suspects free."""
+    scenario = DefectScenario("secondary-left-cz-0", factors={"secondary.left.cz": FAILED_FLOOR})
+    result = monitor(scenario_measurements(scenario, RUNS))
+    assert not result.explained
+    assert "frame vertical" in {t.group for t in result.misfits}, result.goodness
+    suspects = [s.name for s in result.goodness.suspects]
+    assert "secondary.left.cz" in suspects[:2], result.goodness.suspects
+    assert "suspects_s" in result.timings
+    for v in result.alarms:
+        assert v.evidence["with_suspects_free"]["verdict"] in ALARMS, v
+    for v in result.verdicts:
+        if "withheld" in v.evidence:
+            assert v.verdict == "not identifiable" and v.evidence["not_explained"]
+    record = json.loads(json.dumps(result.to_dict()))
+    assert record["explained"] is False and record["goodness_of_fit"]["misfits"]
+    assert "DATA NOT EXPLAINED" in result.table()
+    print(result.table())
+
+
 def test_monitor_leaves_out_a_run_the_fit_cannot_explain(healthy, nominal):
     """Run 1 carries a linear drift of 20 noise standard deviations RMS on every channel (a
     broken acquisition; a constant offset would be a sensor bias, which `monitor` removes): no

@@ -140,6 +140,9 @@ def test_the_score_test_finds_the_omitted_column_and_the_alarm_is_withheld():
     assert held.evidence["with_suspects_free"]["estimate"] == pytest.approx(1.0, abs=0.02)
     assert "does not explain" in held.evidence["reason"]
     # an alarm that holds with the column free is kept
+    collinear = recheck_alarm(v, 0, jac, r, 2.0 * jac[:, :1])  # determines the coordinate
+    assert collinear.verdict == "not identifiable"
+    assert collinear.evidence["with_suspects_free"]["std_error"] == float("inf")
     kept = recheck_alarm(v, 0, jac, r, others[:, :1])
     assert kept.verdict == "degraded" and "with_suspects_free" in kept.evidence
 

@@ -145,15 +145,34 @@ def freed(suspects, alpha: float, n_screened: int) -> list[int]:
     return chosen or ([0] if suspects else [])
 
 
+def _alone(matrix, index: int) -> np.ndarray:
+    """Column `index` of `matrix` with the other columns projected out (Frisch-Waugh-Lovell)."""
+    column, others = matrix[:, index], np.delete(matrix, index, axis=1)
+    if not others.shape[1]:
+        return column
+    return column - others @ np.linalg.lstsq(others, column, rcond=None)[0]
+
+
+def freed_step(jac, r, columns, index: int) -> tuple[float, float]:
+    """(the Gauss-Newton step of coordinate `index` with `columns` free, the ratio of its
+    Gauss-Newton variance with them to without); the ratio is inf where they determine it."""
+    wide = np.column_stack([jac, columns])
+    alone, alone_wide = _alone(jac, index), _alone(wide, index)
+    norm, norm_wide = float(alone @ alone), float(alone_wide @ alone_wide)
+    if not norm_wide > 1e-10 * norm:
+        return 0.0, math.inf
+    return -float(alone_wide @ r) / norm_wide, norm / norm_wide
+
+
 def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
     """`verdict` (an alarm on coordinate `index` of `jac`) withheld where it does not hold with
     `columns` free (module docstring); otherwise kept, with the check in its evidence."""
-    wide = np.column_stack([jac, columns])
-    step = -np.linalg.lstsq(wide, r, rcond=None)[0]
-    var = np.diag(np.linalg.pinv(jac.T @ jac))[index]
-    var_wide = np.diag(np.linalg.pinv(wide.T @ wide))[index]
-    estimate = verdict.estimate * math.exp(step[index])
-    se = verdict.std_error * math.sqrt(var_wide / var) if var > 0 else math.inf
+    step, ratio = freed_step(jac, r, columns, index)
+    with np.errstate(over="ignore"):
+        estimate = float(verdict.estimate * np.exp(step))
+    se = verdict.std_error * math.sqrt(ratio)
+    if not (math.isfinite(estimate) and math.isfinite(se)):
+        estimate, se = verdict.estimate, math.inf
     again = judge(
         verdict.name, estimate, se, verdict.band, z=verdict.evidence["z"],
         dof=verdict.evidence.get("ci95_dof") or math.inf,
