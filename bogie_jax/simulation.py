@@ -146,6 +146,17 @@ def _beyond_table_in_window_time(tau, y, args, **kwargs):
     return beyond_contact_table(first + tau, y, model)
 
 
+def _event(table: bool, stop_after):
+    """The solve's `diffrax.Event`: at the contact table's edge (`table`) and, where
+    `stop_after` [s] is given, past that window time (key `"stop"`); `None` for neither."""
+    if stop_after is None:
+        return dfx.Event(_beyond_table_in_window_time) if table else None
+    conds = {"stop": lambda tau, y, args, **kwargs: tau > stop_after}
+    if table:
+        conds["table"] = _beyond_table_in_window_time
+    return dfx.Event(conds)
+
+
 def sample_accelerations(model, ts, q, qd):
     """q_ddot (n, 10) at the samples `ts` [s] from the equations of motion (paper eq. 11).
 
@@ -172,6 +183,7 @@ def simulate(
     y0=None,
     options: ModelOptions = ModelOptions(),
     settings: SolveSettings | None = None,
+    stop_after=None,
     **solve_options,
 ) -> Trajectory:
     """Simulate the bogie running at constant `speed` over `track`.
@@ -199,6 +211,10 @@ def simulate(
       Newton solve fails, `Trajectory.result` says so (with `throw=False`; with `throw=True`
       it raises).
     - `options`: `ModelOptions` (nonlinear model options).
+    - `stop_after` [s]: time after the first sample at which the solve stops (may be traced;
+      `None`: it runs to the last sample). The samples after the step that passes it hold inf
+      states and NaN accelerations and the result stays successful: a fit of the first seconds
+      of a run pays for those seconds only, with one compiled program for every span.
     - `settings`: `SolveSettings` (solver, step-size controller, adjoint, `max_steps`, `dt0`,
       `throw`; default `SolveSettings()`). Use `settings.forward_mode()` for `jax.jacfwd`,
       `throw=False` inside `vmap` (failures are then in `Trajectory.result`).
@@ -222,6 +238,7 @@ def simulate(
         as_array(start_position),
         as_array(lead_in),
         None if y0 is None else as_array(y0),
+        None if stop_after is None else as_array(stop_after),
         duration=duration,
         sample_rate=sample_rate,
         options=options,
@@ -231,8 +248,9 @@ def simulate(
 
 @eqx.filter_jit
 def _simulate_compiled(
-    params, track, speed, start_position, lead_in, y0, *, duration, sample_rate, options, settings
-) -> Trajectory:
+    params, track, speed, start_position, lead_in, y0, stop_after, *, duration, sample_rate,
+    options, settings,
+) -> Trajectory:  # fmt: skip
     """`simulate` after its checks, as one compiled program: called from Python, the solve, the
     static equilibrium and the accelerations would otherwise each be dispatched (and the
     operations between them compiled) one by one. Under an outer `jit` or `vmap` it is
@@ -263,13 +281,16 @@ def _simulate_compiled(
         adjoint=settings.adjoint,
         max_steps=settings.max_steps,
         throw=settings.throw,
-        event=dfx.Event(_beyond_table_in_window_time) if table else None,
+        event=_event(table, stop_after),
     )
     q, qd = solution.ys[:, :N_DOF], solution.ys[:, N_DOF:]
     qdd = sample_accelerations(model, ts, q, qd)
     if table:  # samples after a stop at the table's edge hold inf (diffrax), never NaN
         qdd = jnp.where(jnp.isfinite(q).all(axis=1, keepdims=True), qdd, jnp.inf)
     result = solution.result
+    if stop_after is not None:  # stopping there is what was asked for
+        stopped = solution.event_mask["stop"]
+        result = dfx.RESULTS.where(stopped, dfx.RESULTS.successful, result)
     if rest is not None:
         at_rest = rest.result == optx.RESULTS.successful
         result = dfx.RESULTS.where(at_rest, result, dfx.RESULTS.promote(rest.result))

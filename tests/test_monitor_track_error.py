@@ -24,6 +24,22 @@ def _record(rng, n):
     return np.cumsum(rng.standard_normal((n, 3)), axis=0) * np.array([1e-4, 2e-4, 1e-4])
 
 
+def _differences(evaluate_at, tracks):
+    """`derivatives_at` of a model linear in its records: r(record + e) - r(record) is exactly
+    its derivative along e."""
+
+    def derivatives_at(errors, phi):
+        r0 = np.asarray(evaluate_at(tracks, phi)[0])
+        shifted = [
+            [TrackIrregularity(t.s0, t.ds, np.asarray(t.values) + np.asarray(e.values))
+             for t, e in zip(tracks, es)]
+            for es in errors
+        ]  # fmt: skip
+        return r0, np.array([np.asarray(evaluate_at(x, phi)[0]) - r0 for x in shifted])
+
+    return derivatives_at
+
+
 def test_record_error_has_the_level_and_the_spectrum_of_the_model():
     rng = np.random.default_rng(0)
     values = _record(rng, 400)
@@ -94,8 +110,9 @@ def test_covariance_of_the_shift_matches_its_closed_form():
 
     rms, draws = 3e-4, 2000
     effect = track_error_effect(
-        evaluate_at, [track], np.zeros(n), RecordError(rms, SEMI), draws=draws, seed=3
-    )
+        evaluate_at, _differences(evaluate_at, [track]), [track], np.zeros(n),
+        RecordError(rms, SEMI), draws=draws, seed=3,
+    )  # fmt: skip
     got = effect.covariance
     assert effect.draws == draws
     target = np.array([rms, rms, rms / (2 * SEMI)])
@@ -117,9 +134,9 @@ def test_covariance_of_the_shift_matches_its_closed_form():
     outside = np.eye(m) - a @ pinv
     expected_ss = np.trace(outside @ g @ cov_e @ g.T @ outside.T)
     assert effect.misfit_ss == pytest.approx(expected_ss, rel=0.12)
-    # the Jacobian does not depend on the record: no errors-in-variables bias (the mean of
-    # 2000 zero-mean shifts: within 4 of its standard errors, sqrt(var / 2000))
-    assert np.all(np.abs(effect.bias) < 4 * np.sqrt(np.diag(expected) / draws))
+    # the Jacobian does not depend on the record: no errors-in-variables bias (an antithetic
+    # pair's shifts cancel exactly in a linear model)
+    assert np.all(np.abs(effect.bias) < 1e-9 * np.sqrt(np.diag(expected)))
 
 
 def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
@@ -127,7 +144,7 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
     error variance sigma^2: the least-squares slope is attenuated, a_hat ~ a / (1 + rho),
     rho = sigma^2 / mean(u^2) (regression dilution; Carroll et al. 2006, ch. 3). The record's
     bias (SIMEX, one added level) removes it to second order: a_hat - bias ~ a (1 - rho^2).
-    rho = 0.1; 300 records, 16 draws each."""
+    rho = 0.1; 300 records, 4 antithetic pairs of refits each."""
     rng = np.random.default_rng(5)
     n, a_true, rho = 201, 2.0, 0.1
     u = np.zeros((n, 3))
@@ -145,8 +162,9 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
             x = np.asarray(tracks[0].values)[:, 0]
             return y - phi[0] * x, -x[:, None]
 
+        tracks = [TrackIrregularity(0.0, 0.5, record)]
         effect = track_error_effect(
-            evaluate_at, [TrackIrregularity(0.0, 0.5, record)], np.array([a_hat]),
+            evaluate_at, _differences(evaluate_at, tracks), tracks, np.array([a_hat]),
             RecordError(rms, SEMI), draws=16, seed=int(rng.integers(2**31)),
         )  # fmt: skip
         fitted.append(a_hat)
@@ -159,13 +177,15 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
     assert abs(corrected_bias) < 0.02 and abs(corrected_bias) < 0.25 * abs(fitted_bias)
 
 
-def test_each_draw_is_refitted_to_the_perturbed_records_minimum():
+def test_each_pair_is_refitted_to_the_perturbed_records_minimum():
     """A model nonlinear in its coordinate, as `monitor`'s ln p: y = exp(phi) u fitted on a
-    record x = u + e. Oracle: each draw's refit has the closed form phi_e = ln(x_e^T y /
-    |x_e|^2) on the draw's record x_e (the same `default_rng(seed)` realisations), and the bias
-    is the mean of phi_e - phi_0. One Gauss-Newton step gives exp(phi_e - phi_0) - 1 instead of
-    phi_e - phi_0 (the step is linear in the shift, the refit is not): its mean misses the
-    second-order term that the bias is made of; the iterated refit reaches the oracle."""
+    record x = u + e. Oracle: each refit has the closed form phi_e = ln(x_e^T y / |x_e|^2) on
+    the perturbed record x_e, x +- e for the first `pairs` of the same `default_rng(seed)`
+    realisations, and the bias is the mean of phi_e - phi_0 over both signs of every pair. One
+    Gauss-Newton step gives exp(phi_e - phi_0) - 1 instead of phi_e - phi_0 (the step is linear
+    in the shift, the refit is not): its mean misses the second-order term that the bias is
+    made of; the iterated refit reaches the oracle. The pairs' spread is the bias's Monte Carlo
+    variance."""
     rng = np.random.default_rng(7)
     n = 61
     u = np.zeros((n, 3))
@@ -181,26 +201,28 @@ def test_each_draw_is_refitted_to_the_perturbed_records_minimum():
         x = np.asarray(tracks[0].values)[:, 0]
         return y - np.exp(phi[0]) * x, -np.exp(phi[0]) * x[:, None]
 
-    track = TrackIrregularity(0.0, 0.5, record)
+    tracks = [TrackIrregularity(0.0, 0.5, record)]
     effect = track_error_effect(
-        evaluate_at, [track], phi0, RecordError(rms, SEMI), draws=40, refit_steps=6, seed=11
-    )
+        evaluate_at, _differences(evaluate_at, tracks), tracks, phi0, RecordError(rms, SEMI),
+        draws=40, pairs=20, refit_steps=6, seed=11,
+    )  # fmt: skip
     draws = np.random.default_rng(11)
-    refits = []
-    for _ in range(40):
-        x_e = x + record_error(record, rms, SEMI, draws)[:, 0]
-        refits.append(np.log(x_e @ y / (x_e @ x_e)) - phi0[0])
+    errors = [record_error(record, rms, SEMI, draws)[:, 0] for _ in range(40)]
+    refits = np.array(
+        [[np.log(x_e @ y / (x_e @ x_e)) - phi0[0] for x_e in (x + e, x - e)] for e in errors[:20]]
+    )
     oracle = np.mean(refits)
-    assert effect.refit_draws == 40 and effect.bias_by_step.shape == (6, 1)
+    assert effect.refit_draws == 20 and effect.bias_by_step.shape == (6, 1)
     assert effect.bias[0] == pytest.approx(oracle, abs=1e-10)
+    assert effect.bias_variance[0] == pytest.approx(np.var(refits.mean(axis=1), ddof=1) / 20)
     one_step = effect.bias_by_step[0, 0]
     assert one_step == pytest.approx(np.mean(np.expm1(refits)), abs=1e-10)
     assert abs(one_step - oracle) > 0.05 * abs(oracle)  # what one step would have missed
 
 
 def test_a_failed_draw_is_left_out():
-    """A draw whose first evaluation fails is left out of everything; one whose later refit
-    step fails, of the bias only."""
+    """A draw whose derivative is not finite is left out of the covariance and the misfit; a
+    pair whose refit fails, of the bias only; the result does not depend on the workers."""
     rng = np.random.default_rng(2)
     values = _record(rng, 41)
     track = TrackIrregularity(0.0, 0.5, values)
@@ -209,20 +231,35 @@ def test_a_failed_draw_is_left_out():
     def evaluate_at(tracks, phi):
         calls["n"] += 1
         r = np.full(10, float(np.sum(np.asarray(tracks[0].values) - values))) - phi.sum()
-        r = r if calls["n"] not in (3, 6) else np.full(10, np.inf)
-        return r, np.eye(10)[:, :2]
+        return (r if calls["n"] != 3 else np.full(10, np.inf)), np.eye(10)[:, :2]
 
-    # calls: 1 the fit; draw 1: 2, 3 (its second step fails); draw 2: 4, 5; draw 3: 6 (fails)
+    def derivatives_at(errors, phi):
+        d = np.array([np.full(10, float(np.sum(es[0].values))) for es in errors])
+        d[1] = np.nan
+        return np.zeros(10), d
+
+    # one worker, in order: call 1 the start; pair 1: 2, 3 (its second step fails), 4, 5;
+    # pairs 2, 3: 6 to 13
     effect = track_error_effect(
-        evaluate_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=5, refit_steps=2
-    )
-    assert effect.draws == 4 and effect.refit_draws == 3 and effect.covariance.shape == (2, 2)
+        evaluate_at, derivatives_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=5,
+        pairs=3, refit_steps=2, workers=1,
+    )  # fmt: skip
+    assert effect.draws == 4 and effect.refit_draws == 2 and effect.covariance.shape == (2, 2)
+    assert effect.misfits.shape == (4, 10) and calls["n"] == 13
     assert np.all(np.isfinite(effect.covariance)) and np.all(np.isfinite(effect.bias))
-    with pytest.raises(ValueError, match="refit_steps"):
-        track_error_effect(
-            evaluate_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=2,
-            refit_steps=0,
-        )  # fmt: skip
+    calls["n"] = 0
+    again = track_error_effect(
+        evaluate_at, derivatives_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=5,
+        pairs=3, refit_steps=2, workers=4,
+    )  # fmt: skip
+    assert again.draws == 4 and calls["n"] == 13
+    np.testing.assert_array_equal(again.covariance, effect.covariance)
+    for bad in ({"refit_steps": 0}, {"pairs": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            track_error_effect(
+                evaluate_at, derivatives_at, [track], np.zeros(2), RecordError(1e-4, SEMI),
+                draws=2, **bad,
+            )  # fmt: skip
 
 
 def test_model_error_adds_to_the_covariance():

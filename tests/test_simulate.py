@@ -141,3 +141,27 @@ def test_float32_is_explained():
     with jax.enable_x64(False):
         with pytest.warns(UserWarning, match="jax_enable_x64"):
             warn_if_float32()
+
+
+def test_stop_after_stops_the_solve_and_keeps_the_samples_before_it(tracks):
+    """A solve stopped past `stop_after` has the whole run's samples up to there (the same steps,
+    so the same values), inf states after the step that passed it, fewer steps, and a
+    successful result; one program for every stop time."""
+    params = bj.manchester_benchmark()
+    speed = jnp.asarray(40.0)
+
+    @jax.jit
+    def run(stop_after):
+        return simulate(
+            params, tracks[0], speed=speed, duration=DURATION, sample_rate=RATE, throw=False,
+            stepsize_controller=dfx.PIDController(rtol=1e-8, atol=1e-10), max_steps=4096,
+            stop_after=stop_after,
+        )  # fmt: skip
+
+    whole, short = run(jnp.asarray(np.inf)), run(jnp.asarray(0.15))
+    kept = np.asarray(short.ts - short.ts[0]) <= 0.15 + 1e-12
+    assert bool(whole.successful) and bool(short.successful)
+    np.testing.assert_allclose(np.asarray(short.q)[kept], np.asarray(whole.q)[kept], rtol=0, atol=0)
+    assert np.all(~np.isfinite(np.asarray(short.q)[-5:]))
+    assert int(short.num_steps) < 0.6 * int(whole.num_steps)
+    assert run._cache_size() == 1

@@ -23,7 +23,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool
+from jaxtyping import Array, Bool, Float
 
 from ..params import BogieParams, ModelOptions
 from ..runtime.solve_settings import resolve_settings
@@ -46,7 +46,9 @@ class JointResidualModel(eqx.Module):
     - `run_sizes`: the number of residuals of each run (static); `vmapped`: whether the runs
       are evaluated by one `vmap` (static);
     - `corrections`: `RunCorrections` (n_runs,) applied to every run (`with_corrections`),
-      mapped with the stacked run leaves; `None`: none.
+      mapped with the stacked run leaves; `None`: none;
+    - `stop_after` [s]: every run's solve stops that long after its first sample (`simulate`;
+      the later residuals are not used), traced; `None`: the whole runs.
     """
 
     params: BogieParams
@@ -57,6 +59,7 @@ class JointResidualModel(eqx.Module):
     run_sizes: tuple[int, ...] = eqx.field(static=True)
     vmapped: bool = eqx.field(static=True)
     corrections: RunCorrections | None = None
+    stop_after: Float[Array, ""] | None = None
 
     @property
     def n_runs(self) -> int:
@@ -83,7 +86,7 @@ class JointResidualModel(eqx.Module):
 
     def _run(self, model: ResidualModel, corrections) -> ResidualModel:
         """One run with this model's `settings` and its corrections (if any)."""
-        model = dataclasses.replace(model, settings=self.settings)
+        model = dataclasses.replace(model, settings=self.settings, stop_after=self.stop_after)
         return model if corrections is None else model.with_corrections(corrections)
 
     def _run_corrections(self, k: int):

@@ -40,9 +40,11 @@ class ResidualModel(eqx.Module):
     [Hz], `start_position` [m]: track position of the first sample, `lead_in` [m]: distance
     simulated before it, `y0`: a fixed initial state at the start of the lead-in, or `None` for
     the static equilibrium of the parameters `p` being evaluated, solved inside the traced
-    function), the `sensors` and the `SolveSettings` passed to `simulate` (default
-    `SolveSettings.for_objective()`). `start_position` and `lead_in` are arrays (traced): every
-    window of the same sample count shares one compilation. Build it through `make_objective`.
+    function), `stop_after` [s] (`simulate`'s: the samples after it are not simulated and
+    their residuals mean nothing; `None`: all are), the `sensors` and the `SolveSettings`
+    passed to `simulate` (default `SolveSettings.for_objective()`). `start_position` and
+    `lead_in` are arrays (traced): every window of the same sample count shares one
+    compilation. Build it through `make_objective`.
     """
 
     params: BogieParams
@@ -59,6 +61,7 @@ class ResidualModel(eqx.Module):
     y0: Float[Array, " 20"] | None = None
     start_position: Float[Array, ""] = eqx.field(default=0.0, converter=_as_float)
     lead_in: Float[Array, ""] = eqx.field(default=0.0, converter=_as_float)
+    stop_after: Float[Array, ""] | None = None
 
     # Read-only views of `settings` (backward compatibility).
     solver = property(lambda self: self.settings.solver)
@@ -102,6 +105,7 @@ class ResidualModel(eqx.Module):
             y0=self.y0,
             options=self.options,
             settings=self.settings,
+            stop_after=self.stop_after,
         )
 
     def _predict(self, params):

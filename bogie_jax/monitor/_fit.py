@@ -51,9 +51,16 @@ def fit_stages(program: JointProgram) -> tuple[float, ...]:
     return horizon_stages([t[-1] - t[0] for t in _times(program)], start)
 
 
+def _stop_margin(program: JointProgram) -> float:
+    """[s]: a stage's solves run one sample spacing past its horizon, so that its last sample
+    is simulated whatever the rounding of the sample times."""
+    return max((float(np.max(np.diff(t))) for t in _times(program) if t.size > 1), default=0.0)
+
+
 def fit_over_horizon(space: FitSpace, say) -> tuple[HostFit, ...]:
     """The fits from the nominal bogie (and stated speeds and positions) over the horizon
-    stages, each from the last estimate, then of the whole record (`space`'s rows); where the
+    stages, each from the last estimate with the solves stopped past the stage's horizon
+    (`JointProgram.with_horizon`), then of the whole record (`space`'s rows); where the
     stages end at a point whose whole-record simulation fails, the whole record again from the
     start. The last fit is the estimate."""
     program, max_steps = space.program, space.program.problem.options.max_steps
@@ -62,8 +69,9 @@ def fit_over_horizon(space: FitSpace, say) -> tuple[HostFit, ...]:
     for horizon in stages:
         window = window_rows(_times(program), program.slices, program.problem.n_channels, horizon)
         say(f"fitting the first {horizon:g} s of every run")
+        short = space.with_program(program.with_horizon(horizon + _stop_margin(program)))
         stage = levenberg_marquardt(
-            space.with_window(window).evaluate, phi, max_steps=max_steps,
+            short.with_window(window).evaluate, phi, max_steps=max_steps,
             offset_tol=STAGE_OFFSET_TOL,
         )  # fmt: skip
         fits.append(stage)
@@ -147,12 +155,12 @@ def reweight(space: FitSpace, fit: HostFit, say) -> Reweighted:
 
 def member_weights(space: FitSpace, coords, fit: HostFit) -> dict[int, dict[str, float]]:
     """Per group coordinate index, its members' weights in its estimate
-    (`_elements.group_weights`), from their columns at the estimate (one more evaluation) in
-    the fit's rows and weights; `{}` without a group or a fit."""
+    (`_elements.group_weights`), from their columns at the estimate in the fit's rows and
+    weights; `{}` without a group or a fit."""
     if fit.status == "failed" or not any(len(c.members) > 1 for c in coords):
         return {}
     names = space.program.problem.candidates
-    _, jac_x = space.program.evaluate(space.matrix() @ fit.phi)
+    jac_x = space.jacobian_x(fit.phi)
     columns = space.project(jac_x[:, : len(names)]) * space.rows[:, None]
     out = {}
     for j, c in enumerate(coords):

@@ -14,7 +14,8 @@ well enough for the drift over twice its horizon to stay inside the right basin 
 structure for which multiple shooting is preferred to single shooting on long records: Bock, in
 *Numerical Treatment of Inverse Problems in Differential and Integral Equations*, Birkhaeuser
 1983, 95-121). The rows beyond the horizon get zero weight and the sensor bias is estimated
-over the rows fitted; the simulation still covers the whole run, so nothing is compiled again.
+over the rows fitted; the solves stop one sample past the horizon (`simulate`'s `stop_after`, a
+traced value: one compiled program for every stage), so a stage costs its horizon's share.
 A record no longer than `start` is fitted in one stage. A stage stops at a Bates-Watts relative
 offset of 0.3 (`_fit.STAGE_OFFSET_TOL`; the last fit keeps 0.01): it only has to reach the next
 stage's basin. `benchmarks/detection.py` measures the whole (docs/benchmarks.md).

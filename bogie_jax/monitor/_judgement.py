@@ -42,8 +42,9 @@ def track_record_term(space: FitSpace, fit: HostFit, say) -> TrackErrorEffect | 
     say(f"track record error {1e3 * o.track_error:.3g} mm: {o.track_error_draws} realisations")
     semi_distance = float(np.asarray(p.params.contact.contact_semi_distance))
     return track_error_effect(
-        space.evaluate_on, p.tracks, fit.phi, RecordError(o.track_error, semi_distance),
-        draws=o.track_error_draws, references=[m.track for m in p.measurements],
+        space.evaluate_on, space.track_derivatives, p.tracks, fit.phi,
+        RecordError(o.track_error, semi_distance), draws=o.track_error_draws,
+        references=[m.track for m in p.measurements], start=(fit.r, fit.jac),
     )  # fmt: skip
 
 
@@ -61,7 +62,8 @@ class Estimate:
 
 def estimate_of(space: FitSpace, fit: HostFit, track_effect, n_log: int) -> Estimate:
     """The records' bias is removed among the first `n_log` (ln p / p_nominal) coordinates
-    where it and the records' first-order spread are both under `SIMEX_MAX_SPREAD`: a
+    where it and the records' first-order spread are both under `SIMEX_MAX_SPREAD` and its
+    Monte Carlo variance is known (two refit pairs or more): a
     second-order bias extrapolated from a few Gauss-Newton steps is trusted only there (in ln p
     the steps' own error grows with the spread squared). Nuisance coordinates keep their
     fitted values."""
@@ -70,6 +72,7 @@ def estimate_of(space: FitSpace, fit: HostFit, track_effect, n_log: int) -> Esti
         bias = np.asarray(track_effect.bias, dtype=float)
         spread = np.sqrt(np.maximum(np.diag(track_effect.covariance), 0.0))
         use = np.isfinite(bias) & (np.abs(bias) < SIMEX_MAX_SPREAD) & (spread < SIMEX_MAX_SPREAD)
+        use &= np.isfinite(track_effect.bias_variance)
         use[n_log:] = False
         phi = fit.phi - np.where(use, bias, 0.0)
     return Estimate(fit, phi, use, track_effect, space.matrix() @ phi)
@@ -100,12 +103,12 @@ class Statistics:
 
 
 def _track_covariance(estimate: Estimate, scale) -> np.ndarray:
-    """The records' term in reported units, with the Monte Carlo error of a removed bias."""
+    """The records' term in reported units, with the Monte Carlo variance of a removed bias."""
     effect = estimate.track_effect
     if effect is None:
         return np.zeros((scale.size, scale.size))
-    inflate = scale * np.sqrt(1.0 + estimate.corrected / max(effect.draws, 1))
-    return np.outer(inflate, inflate) * effect.covariance
+    removed = np.where(estimate.corrected, effect.bias_variance, 0.0)
+    return np.outer(scale, scale) * (effect.covariance + np.diag(removed))
 
 
 def statistics(space: FitSpace, coords, estimate: Estimate) -> Statistics:

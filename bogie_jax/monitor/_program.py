@@ -23,11 +23,35 @@ import numpy as np
 from ..cost import RunChannels, make_joint_objective, residual_jacobian
 from ..params import BogieParams
 from ..runtime.solve_settings import SolveSettings
+from ..track import TrackIrregularity
 from ._nuisance import NuisanceLayout
 from ._options import MonitorOptions
 
 
 _JACOBIAN = eqx.filter_jit(residual_jacobian)
+
+
+def _track_spec(objective):
+    """`objective`'s filter spec: True at the `values` and `curvatures` of its track records."""
+
+    def mark(node):
+        if not isinstance(node, TrackIrregularity):
+            return False
+        spec = object.__new__(TrackIrregularity)  # a spec, not a track: no __init__
+        for name, on in (("s0", False), ("ds", False), ("values", True), ("curvatures", True)):
+            object.__setattr__(spec, name, on)
+        return spec
+
+    return jax.tree.map(mark, objective, is_leaf=lambda x: isinstance(x, TrackIrregularity))
+
+
+@eqx.filter_jit
+def _track_derivatives(objective, x, directions):
+    """r (m,) at x and its derivatives (K, m) along the K track-record `directions` (the track
+    part of `objective`'s tree, `_track_spec`, stacked on a leading axis): forward mode."""
+    tracks, rest = eqx.partition(objective, _track_spec(objective))
+    fn = lambda t: jnp.ravel(eqx.combine(t, rest).residuals(x))
+    return jax.vmap(lambda d: jax.jvp(fn, (tracks,), (d,)), out_axes=(None, 0))(directions)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,21 +103,45 @@ class JointProgram:
         ).forward_mode()  # fmt: skip
         objective = joint.with_run_corrections() if o.run_corrections else joint
         active = np.ones(problem.n_runs, bool) if active is None else np.asarray(active, bool)
-        return cls(problem, objective, np.ones(problem.n_runs, bool)).with_active(active)
+        program = cls(problem, objective, np.ones(problem.n_runs, bool)).with_active(active)
+        return program.with_horizon(np.inf)
+
+    def _runs(self, objective):
+        """The `JointResidualModel` inside `objective`."""
+        if self.problem.options.run_corrections:
+            return objective.objective.residual_model
+        return objective.residual_model
 
     def with_active(self, active) -> "JointProgram":
         """The program with the runs `active` (the others give zero residuals)."""
         active = np.array(active, dtype=bool)
-        if self.problem.options.run_corrections:
-            where = lambda o: o.objective.residual_model.active
-        else:
-            where = lambda o: o.residual_model.active
+        where = lambda o: self._runs(o).active
         objective = eqx.tree_at(where, self.objective, jnp.asarray(active))
         return dataclasses.replace(self, objective=objective, active=active)
 
+    def with_horizon(self, horizon: float) -> "JointProgram":
+        """The program whose solves stop `horizon` [s] after each run's first sample (`inf`:
+        the whole runs; the same compiled program): a fit of the first seconds of every run
+        (`_horizon.py`) pays for those seconds only."""
+        where = lambda o: self._runs(o).stop_after
+        value = jnp.asarray(float(horizon))
+        objective = eqx.tree_at(where, self.objective, value, is_leaf=lambda x: x is None)
+        return dataclasses.replace(self, objective=objective)
+
     def on_records(self, records) -> "JointProgram":
-        """The same runs on other track records (the same compiled program)."""
+        """The same runs on other track records (the same compiled program, whole runs)."""
         return JointProgram.build(self.problem, records, self.active)
+
+    def track_derivatives(self, x, errors) -> tuple[np.ndarray, np.ndarray]:
+        """r (m,) at x and dr along each of the K record errors `errors` (K lists of one
+        `TrackIrregularity` per run: the change of each run's record) (K, m), on the host: r is
+        linear in a record's samples and their spline curvatures, so each is one directional
+        derivative (one compiled program for the K directions)."""
+        spec = _track_spec(self.objective)
+        parts = [eqx.filter(self.on_records(e).objective, spec) for e in errors]
+        directions = jax.tree.map(lambda *leaves: jnp.stack(leaves), *parts)
+        r, d = _track_derivatives(self.objective, jnp.asarray(x), directions)
+        return np.asarray(r), np.asarray(d)
 
     @property
     def slices(self) -> tuple:
@@ -183,19 +231,30 @@ class FitSpace:
     def evaluate(self, v) -> tuple[np.ndarray, np.ndarray]:
         """Weighted r and dr/dv at v; a v whose run offsets lie out of bounds
         (`NuisanceLayout.in_bounds`) gives infinite residuals (a rejected step)."""
-        r, jac = self.memo.get(v, self._unweighted)
+        r, jac, _ = self.memo.get(v, self._unweighted)
         return r * self.rows, jac * self.rows[:, None]
 
+    def jacobian_x(self, v) -> np.ndarray:
+        """dr/dx (m, n_x) at x = B v, unweighted and unprojected (the memo's where it has v)."""
+        return self.memo.get(v, self._unweighted)[2]
+
     def _unweighted(self, v):
+        """(P r, P J B, J) at v: in the window, bias projected, unweighted."""
         b = self.matrix()
         x = b @ v
         if not self.program.nuisance_layout().in_bounds(x):
             r = np.full(self.window.shape, np.inf)
-            return r, np.zeros((r.size, b.shape[1]))
+            return r, np.zeros((r.size, b.shape[1])), np.zeros((r.size, b.shape[0]))
         r, jac = self.program.evaluate(x)
         with np.errstate(invalid="ignore"):  # rows beyond the horizon may be inf
-            r, jac = np.where(self.window, r, 0.0), np.where(self.window[:, None], jac @ b, 0.0)
-        return self.project(r), self.project(jac)
+            r, jac_v = np.where(self.window, r, 0.0), np.where(self.window[:, None], jac @ b, 0.0)
+        return self.project(r), self.project(jac_v), jac
+
+    def track_derivatives(self, errors, v) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted r at v and its derivatives (K, m) along the K record `errors`
+        (`JointProgram.track_derivatives`), in these rows (no bounds, no memo)."""
+        r, d = self.program.track_derivatives(self.matrix() @ v, errors)
+        return self.project(r) * self.rows, self.project(d.T).T * self.rows
 
     def evaluate_on(self, records, v) -> tuple[np.ndarray, np.ndarray]:
         """Weighted r and dr/dv at v with other track records (no bounds, no memo)."""

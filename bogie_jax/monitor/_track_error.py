@@ -18,26 +18,33 @@ record its few long-wave bins set the RMS, so its share of the shorter waves can
 the process's. A measured error spectrum would replace both.
 
 Propagation, to first order at the fit's end: the error e shifts the estimates by
-`dv = -J^+ (r(record + e) - r(record))` (J and r in the fitted coordinates, with the fit's
-weights and bias projection; the run corrections take their share). The term is the mean of
-`dv dv^T` over `draws` realisations (Monte Carlo: the relative error of a variance is about
-sqrt(2 / draws)); each draw is one evaluation of the compiled residual Jacobian.
+`dv = -J^+ D e` (J and r in the fitted coordinates, with the fit's weights and bias projection;
+the run corrections take their share; D e the residuals' derivative along e, exact because r is
+linear in a record's samples and their spline curvatures). The term is the mean of `dv dv^T`
+over `draws` realisations (Monte Carlo: the relative error of a variance is about
+sqrt(2 / draws)); the draws' D e are one compiled program's directional derivatives, together.
 
 Bias (errors in the input variables): a record with error carries more irregularity than the
 track, and the fit absorbs part of it by stiffening the model's response; the estimates are
 biased by an amount of second order in the error, which the first-order shift above (mean zero)
 does not show. It is removed by simulation-extrapolation (SIMEX: Cook and Stefanski, J. Am.
 Stat. Assoc. 89 (1994) 1314-1328; Carroll et al., *Measurement Error in Nonlinear Models*, 2nd
-ed. 2006, ch. 5) with one added level: each draw refits the record plus a second error of the
-same variance by `refit_steps` Gauss-Newton steps from the fit's estimate, and the mean of the
+ed. 2006, ch. 5) with one added level: the record plus a second error of the same variance is
+refitted by `refit_steps` Gauss-Newton steps from the fit's estimate, and the mean of the
 refits' shifts is the bias at the record's own error level (bias linear in the error variance:
-2 sigma^2 - sigma^2 = sigma^2), subtracted from the estimates. A single step is linear in the
-shift while the bias is of second order, hence two steps by default. The mean of `draws` shifts
-adds `1 / draws` of the term's variance to a corrected estimate's. `monitor` removes it only
-from well-determined element coordinates (`_judgement.estimate_of`).
+2 sigma^2 - sigma^2 = sigma^2), subtracted from the estimates. The refits come in antithetic
+pairs, record + e and record - e (Hammersley and Morton, Proc. Camb. Phil. Soc. 52 (1956)
+449-475): the pair's mean shift has no first-order term, so its spread is that of the
+second-order term alone and a few pairs give the bias to a small fraction of the term's
+spread, which independent draws give only as 1 / sqrt(draws) of it. The bias comes from the
+Jacobian's dependence on the record (a step with the fit's own Jacobian, which needs only
+residuals, leaves none of it), so each refit step evaluates the Jacobian; one step is linear
+in the shift while the bias is of second order, hence two steps by default. The pairs' spread
+gives the Monte Carlo variance of the bias, added to a corrected estimate's. `monitor` removes
+it only from well-determined element coordinates (`_judgement.estimate_of`).
 
 Misfit (a goodness-of-fit yardstick): the part of a draw's residual change outside the span of
-J, `(I - J J^+)(r(record + e) - r(record))`, is what a record's error leaves in the residuals
+J, `(I - J J^+) D e`, is what a record's error leaves in the residuals
 after the fit has absorbed what it can; the mean of its squared norm over the draws is the
 residual sum of squares the records' error should leave at a fit in the right minimum (to first
 order). `monitor` reports the fit's residual sum of squares over it plus the sensors' noise
@@ -45,6 +52,8 @@ order). `monitor` reports the fit's residual sum of squares over it plus the sen
 """
 
 import dataclasses
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
@@ -91,7 +100,8 @@ def record_error(values, rms: float, semi_distance: float, rng, reference=None) 
     )
 
 
-REFIT_STEPS = 2  # Gauss-Newton steps of each draw's refit (module docstring)
+REFIT_STEPS = 2  # Gauss-Newton steps of each refit (module docstring)
+BIAS_PAIRS = 4  # antithetic pairs of refits for the bias (module docstring)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,70 +121,108 @@ class TrackErrorEffect(NamedTuple):
 
     covariance: np.ndarray  # (n, n): of the estimates' shift by the records' error
     bias: np.ndarray  # (n,): the estimates' bias from it (SIMEX), to subtract
-    draws: int  # realisations used (a failed solve's left out)
+    draws: int  # realisations in the covariance (a failed solve's left out)
     misfit_ss: float  # mean |(I - J J^+) dr|^2: the residual SS it leaves
     bias_by_step: np.ndarray  # (steps, n): the bias after each refit step
-    refit_draws: int  # realisations whose every refit step solved (the bias's mean)
+    refit_draws: int  # antithetic pairs whose every refit step solved (the bias's mean)
     misfits: np.ndarray  # (draws, m): each draw's (I - J J^+) dr, in the fit's weighted rows
+    bias_variance: np.ndarray  # (n,): the Monte Carlo variance of `bias` (inf: one pair)
+
+
+def _finite(*arrays) -> bool:
+    return all(np.all(np.isfinite(a)) for a in arrays)
+
+
+def _refit(evaluate_at, records, phi, steps: int):
+    """The path (steps, n) of `steps` Gauss-Newton steps from `phi` on `records`, or `None`
+    where an evaluation is not finite (a failed solve)."""
+    path, x = [], phi
+    for _ in range(steps):
+        r, jac = (np.asarray(a, dtype=float) for a in evaluate_at(records, x))
+        if not _finite(r, jac):
+            return None
+        x = x - np.linalg.pinv(jac) @ r
+        path.append(x)
+    return np.array(path)
+
+
+def _with_error(tracks, errors, sign: float = 1.0):
+    """The records `tracks` plus `sign` times `errors` (one (n, 3) array per record)."""
+    return [
+        TrackIrregularity(t.s0, t.ds, np.asarray(t.values) + sign * e)
+        for t, e in zip(tracks, errors)
+    ]
+
+
+def _pair_means(paths, phi, step0):
+    """The antithetic pairs' mean refit shifts (pairs, steps, n), from the refit paths in pairs
+    (+e, -e) order, a pair with a failed refit (`None`) left out."""
+    pairs = zip(paths[0::2], paths[1::2])
+    return [0.5 * (a + b) - phi + step0 for a, b in pairs if a is not None and b is not None]
+
+
+def _bias(means, steps: int, n: int):
+    """(by_step (steps, n), pairs used, Monte Carlo variance (n,) of the last step's mean)."""
+    if not means:
+        return np.full((steps, n), np.nan), 0, np.full(n, np.inf)
+    means = np.array(means)
+    spread = np.var(means[:, -1], axis=0, ddof=1) / len(means) if len(means) > 1 else np.inf
+    return means.mean(axis=0), len(means), np.broadcast_to(spread, (n,)).copy()
 
 
 def track_error_effect(
-    evaluate_at, tracks, phi, error: RecordError, *, draws, refit_steps=REFIT_STEPS,
-    references=None, seed=0,
+    evaluate_at, derivatives_at, tracks, phi, error: RecordError, *, draws,
+    pairs=BIAS_PAIRS, refit_steps=REFIT_STEPS, references=None, seed=0, start=None,
+    workers=None,
 ):  # fmt: skip
     """The `TrackErrorEffect` (module docstring) at the fit's estimate `phi` (n,).
 
     - `evaluate_at(tracks, phi) -> (r (m,), J (m, n))`: the fit's residuals and Jacobian at
       the coordinates `phi` with these track records (in the fit's weights, projection and
-      coordinates);
+      coordinates); `derivatives_at(errors, phi) -> (r (m,), D (K, m))`: r and its derivatives
+      along K record errors (K lists of one `TrackIrregularity` per run);
     - `tracks`: the runs' `TrackIrregularity` records; `error`: the `RecordError` model;
       `references`: the runs' `TrackReference`s or `None`s (`record_error`);
-    - `draws` realisations from `numpy.random.default_rng(seed)`, each refitted by
-      `refit_steps` (>= 1) Gauss-Newton steps; a draw whose residuals or Jacobian are not
-      finite (a failed solve) is left out: of everything at its first evaluation, of the bias
-      at a later one.
+    - `draws` realisations from `numpy.random.default_rng(seed)` for the covariance and the
+      misfit, a draw whose derivative is not finite (a failed solve) left out; the first
+      `pairs` of them (>= 1), with and without their sign, refitted by `refit_steps` (>= 1)
+      Gauss-Newton steps for the bias, a pair with a failed refit left out;
+    - `start`: `evaluate_at(tracks, phi)` where the caller has it (the fit's last evaluation);
+    - `workers`: threads that run the derivatives and the refits side by side (default: one
+      per core; the compiled programs release the interpreter while they run).
     """
     if not (isinstance(refit_steps, int) and refit_steps >= 1):
         raise ValueError(f"`refit_steps` = {refit_steps!r} must be an integer >= 1")
+    if not (isinstance(pairs, int) and pairs >= 1):
+        raise ValueError(f"`pairs` = {pairs!r} must be an integer >= 1")
     rng = np.random.default_rng(seed)
     phi = np.asarray(phi, dtype=float)
     references = [None] * len(tracks) if references is None else list(references)
-    r0, j0 = (np.asarray(a, dtype=float) for a in evaluate_at(list(tracks), phi))
+    errors = [
+        [error.draw(t.values, rng, ref) for t, ref in zip(tracks, references)]
+        for _ in range(draws)
+    ]  # fmt: skip
+    start = evaluate_at(list(tracks), phi) if start is None else start
+    r0, j0 = (np.asarray(a, dtype=float) for a in start)
+    changes = [[TrackIrregularity(t.s0, t.ds, e) for t, e in zip(tracks, es)] for es in errors]
+    perturbed = [_with_error(tracks, e, sign) for e in errors[:pairs] for sign in (1, -1)]
+    with ThreadPoolExecutor(workers or os.cpu_count() or 1) as pool:
+        derivatives = pool.submit(derivatives_at, changes, phi)
+        refits = [pool.submit(_refit, evaluate_at, x, phi, refit_steps) for x in perturbed]
+        d = np.asarray(derivatives.result()[1], dtype=float)
+        paths = [f.result() for f in refits]
     pinv = np.linalg.pinv(j0)
     step0 = pinv @ r0  # ~0 at a converged fit; subtracted so that no error gives no shift
-    first, refit, misfit = [], [], []
-    for _ in range(draws):
-        perturbed = [
-            TrackIrregularity(
-                t.s0,
-                t.ds,
-                np.asarray(t.values) + error.draw(t.values, rng, ref),
-            )
-            for t, ref in zip(tracks, references)
-        ]
-        r, jac = (np.asarray(a, dtype=float) for a in evaluate_at(perturbed, phi))
-        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
-            continue
-        change = r - r0
-        first.append(-pinv @ change)
-        misfit.append(change - j0 @ (pinv @ change))
-        path, x = [], phi
-        for step in range(refit_steps):
-            if step:
-                r, jac = (np.asarray(a, dtype=float) for a in evaluate_at(perturbed, x))
-                if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
-                    break
-            x = x - np.linalg.pinv(jac) @ r
-            path.append(x - phi + step0)
-        if len(path) == refit_steps:
-            refit.append(path)
-    n = j0.shape[1]
-    by_step = np.mean(refit, axis=0) if refit else np.full((refit_steps, n), np.nan)
-    if not first:
-        none = np.zeros((0, r0.size))
-        return TrackErrorEffect(np.full((n, n), np.nan), by_step[-1], 0, np.nan, by_step, 0, none)
-    s, misfits = np.array(first), np.array(misfit)
+    by_step, n_pairs, bias_var = _bias(_pair_means(paths, phi, step0), refit_steps, phi.size)
+    d = d[np.all(np.isfinite(d), axis=1)]
+    first = -(pinv @ d.T).T  # (K, n): each draw's first-order shift
+    misfits = d - (j0 @ (pinv @ d.T)).T
+    n, k = j0.shape[1], d.shape[0]
+    if not k:
+        return TrackErrorEffect(
+            np.full((n, n), np.nan), by_step[-1], 0, np.nan, by_step, n_pairs, misfits, bias_var
+        )
     return TrackErrorEffect(
-        s.T @ s / len(first), by_step[-1], len(first), float(np.mean(np.sum(misfits**2, axis=1))),
-        by_step, len(refit), misfits,
+        first.T @ first / k, by_step[-1], k, float(np.mean(np.sum(misfits**2, axis=1))),
+        by_step, n_pairs, misfits, bias_var,
     )  # fmt: skip
