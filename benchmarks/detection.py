@@ -203,17 +203,18 @@ def _value(params, name) -> float:
     return float(np.asarray(get_parameter(params, name)))
 
 
-def run_case(cfg: dict, index: int) -> dict:
-    """Simulate case `index`, judge it with `monitor`, return its record."""
+def case_inputs(cfg: dict, index: int) -> dict:
+    """Case `index`'s bogie and `monitor`'s input (module docstring): `case` (its draws),
+    `nominal` and `truth` parameters, `scenario`, the measured `runs`, the recorded `tracks` and
+    the `options`."""
     case = draw_case(cfg, index)
     on = set(cfg["imperfections"])
-    tic = time.perf_counter()
     nominal = manchester_benchmark()
     scenario = DEFECT_SCENARIOS[case["scenario"]]
     truth = scenario.true_params(nominal)
     if "worn-wheels" in on:
         truth = worn_wheels(truth, case["cone_slope_factor"])
-    options = nonlinear_options() if "nonlinear" in on else ModelOptions()
+    model = nonlinear_options() if "nonlinear" in on else ModelOptions()
     duration, rate = cfg["duration_s"], cfg["sample_rate_hz"]
     wheelbase = 2.0 * _value(nominal, "geometry.semi_wheelbase")
     length = cfg["speed_range_m_s"][1] * duration + wheelbase + WHEELBASE_MARGIN
@@ -221,48 +222,64 @@ def run_case(cfg: dict, index: int) -> dict:
         TrackReference(spectrum=cfg["track_spectrum"], seed=s, length=length)
         for s in case["track_seeds"]
     ]
-    record = {"case": case, "config_hash": config_hash(cfg), "pid": os.getpid()}
-    try:
-        clean = [
-            synthetic_measurement(
-                truth,
-                ref.build(),
-                speed=v,
-                duration=duration,
-                sample_rate=rate,
-                track_reference=ref,
-                options=options,
-            )  # fmt: skip
-            for ref, v in zip(refs, case["speeds"])
-        ]
-        runs = with_channel_noise(
-            clean,
-            case["noise_fraction"],
-            key=jr.PRNGKey(case["noise_seed"]),
-            declared="channel-noise" not in on,
+    clean = [
+        synthetic_measurement(
+            truth,
+            ref.build(),
+            speed=v,
+            duration=duration,
+            sample_rate=rate,
+            track_reference=ref,
+            options=model,
+        )  # fmt: skip
+        for ref, v in zip(refs, case["speeds"])
+    ]
+    runs = with_channel_noise(
+        clean,
+        case["noise_fraction"],
+        key=jr.PRNGKey(case["noise_seed"]),
+        declared="channel-noise" not in on,
+    )
+    if "bias" in on:
+        runs = with_sensor_bias(runs, case["bias_fractions"])
+    if "speed" in on:
+        runs = tuple(with_speed_error(m, e) for m, e in zip(runs, case["speed_errors"]))
+    semi = _value(nominal, "contact.contact_semi_distance")
+    track_on = "track" in on
+    tracks = [
+        recorded_track(
+            ref,
+            noise=cfg["track_noise_mm"] * 1e-3 if track_on else 0.0,
+            offset=off if track_on else 0.0,
+            semi_distance=semi,
         )
-        if "bias" in on:
-            runs = with_sensor_bias(runs, case["bias_fractions"])
-        if "speed" in on:
-            runs = tuple(with_speed_error(m, e) for m, e in zip(runs, case["speed_errors"]))
-        semi = _value(nominal, "contact.contact_semi_distance")
-        track_on = "track" in on
-        tracks = [
-            recorded_track(
-                ref,
-                noise=cfg["track_noise_mm"] * 1e-3 if track_on else 0.0,
-                offset=off if track_on else 0.0,
-                semi_distance=semi,
-            )
-            for ref, off in zip(refs, case["offsets_m"])
-        ]
+        for ref, off in zip(refs, case["offsets_m"])
+    ]
+    options = MonitorOptions(
+        false_alarm_rate=cfg["false_alarm_rate"],
+        track_error=1e-3 * cfg.get("track_error_mm", 0.0),
+    )
+    return dict(
+        case=case, nominal=nominal, truth=truth, scenario=scenario, runs=runs, tracks=tracks,
+        options=options,
+    )  # fmt: skip
+
+
+def run_case(cfg: dict, index: int) -> dict:
+    """Simulate case `index`, judge it with `monitor`, return its record."""
+    on = set(cfg["imperfections"])
+    track_on = "track" in on
+    tic = time.perf_counter()
+    record = {"case": draw_case(cfg, index), "config_hash": config_hash(cfg), "pid": os.getpid()}
+    try:
+        inputs = case_inputs(cfg, index)
+        case, nominal, truth = inputs["case"], inputs["nominal"], inputs["truth"]
+        scenario = inputs["scenario"]
         record["simulate_s"] = time.perf_counter() - tic
         t0 = time.perf_counter()
-        options = MonitorOptions(
-            false_alarm_rate=cfg["false_alarm_rate"],
-            track_error=1e-3 * cfg.get("track_error_mm", 0.0),
+        result = monitor(
+            inputs["runs"], inputs["tracks"], params=nominal, options=inputs["options"]
         )
-        result = monitor(runs, tracks, params=nominal, options=options)
         record["monitor_s"] = time.perf_counter() - t0
     except (RuntimeError, ValueError) as e:
         record.update(error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - tic)

@@ -14,6 +14,7 @@ is a new object.
 """
 
 import dataclasses
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 
 import equinox as eqx
 import jax
@@ -91,6 +92,7 @@ class JointProgram:
     problem: MonitorProblem
     objective: object
     active: np.ndarray
+    warming: Future | None = dataclasses.field(default=None, compare=False)
 
     @classmethod
     def build(cls, problem: MonitorProblem, records=None, active=None) -> "JointProgram":
@@ -132,11 +134,25 @@ class JointProgram:
         """The same runs on other track records (the same compiled program, whole runs)."""
         return JointProgram.build(self.problem, records, self.active)
 
+    def warming_up(self, draws: int) -> "JointProgram":
+        """This program with `track_derivatives` for `draws` directions compiled in a thread
+        of its own from now on (on another core while the Jacobian's compiles)."""
+        zeros = [
+            [TrackIrregularity(t.s0, t.ds, np.zeros_like(t.values)) for t in self.problem.tracks]
+        ]
+        x = np.zeros(self.nuisance_layout().n_x)
+        pool = ThreadPoolExecutor(1)
+        future = pool.submit(self.track_derivatives, x, zeros * draws)
+        pool.shutdown(wait=False)
+        return dataclasses.replace(self, warming=future)
+
     def track_derivatives(self, x, errors) -> tuple[np.ndarray, np.ndarray]:
         """r (m,) at x and dr along each of the K record errors `errors` (K lists of one
         `TrackIrregularity` per run: the change of each run's record) (K, m), on the host: r is
         linear in a record's samples and their spline curvatures, so each is one directional
         derivative (one compiled program for the K directions)."""
+        if self.warming is not None:
+            wait([self.warming])  # its compile, so that it is not done twice
         spec = _track_spec(self.objective)
         parts = [eqx.filter(self.on_records(e).objective, spec) for e in errors]
         directions = jax.tree.map(lambda *leaves: jnp.stack(leaves), *parts)
