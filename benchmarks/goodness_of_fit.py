@@ -151,6 +151,15 @@ def load(path: Path) -> dict[int, dict]:
     return out
 
 
+def _wilson(k: int, n: int, z: float = 1.96) -> str:
+    """The Wilson 95 % interval of a rate k / n, as `[lo, hi] %`."""
+    if not n:
+        return "-"
+    p, d = k / n, 1 + z**2 / n
+    centre, half = (p + z**2 / (2 * n)) / d, z * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / d
+    return f"[{100 * (centre - half):.1f}, {100 * (centre + half):.1f}] %"
+
+
 def summary(records: list[dict], args) -> tuple[dict, str]:
     """Rejection rates per case and per run-group test; the mean low-band ratio."""
     n = len(records)
@@ -164,8 +173,10 @@ def summary(records: list[dict], args) -> tuple[dict, str]:
         "",
         f"{n} cases of two {args.duration:g} s runs at {args.sample_rate:g} Hz (track record "
         f"error {args.track_noise:g} mm, given to monitor); the data are called not explained "
-        f"in {rejected} of {n} cases ({rejected / max(n, 1):.0%}), at the family-wise rate "
-        f"0.05 over {len(tests) // max(n, 1)} run-group tests per case.",
+        f"in {rejected} of {n} cases ({rejected / max(n, 1):.0%}, Wilson 95 % interval "
+        f"{_wilson(rejected, n)}), at the family-wise rate 0.05 over "
+        f"{len(tests) // max(n, 1)} run-group tests per case; "
+        f"{sum(t['rejected'] for t in tests)} of {len(tests)} run-group tests rejected.",
         "",
         "| group | tests | rejected | median T / expected | max T / expected |",
         "| --- | --- | --- | --- | --- |",
@@ -217,8 +228,12 @@ def main(argv=None):
         done[index] = rec
     records = [done[k] for k in sorted(done) if k < args.cases]
     out, md = summary(records, args)
+    previous = FOLDER / f"{stem}.json"  # --report: the environment of the measuring run
+    env = None
+    if args.report and previous.exists():
+        env = json.loads(previous.read_text()).get("environment")
     write_outputs(f"goodness_of_fit/{stem}", records, md, extra={"summary": out,
-                  "config": vars(args)})  # fmt: skip
+                  "config": vars(args)}, env=env)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -423,14 +423,17 @@ def test_monitor_names_data_it_does_not_explain_and_withholds_alarms():
     assert "secondary.left.cz" in suspects[:2], result.goodness.suspects
     assert "suspects_s" in result.timings
     for v in result.alarms:
-        assert v.evidence["with_suspects_free"]["verdict"] in ALARMS, v
-    for v in result.verdicts:
-        if "withheld" in v.evidence:
-            assert v.verdict == "not identifiable" and v.evidence["not_explained"]
+        assert v.evidence["with_suspects_free"]["holds"], v
+    withheld = [v for v in result.verdicts if "withheld" in v.evidence]
+    for v in withheld:
+        assert v.verdict == "not identifiable" and v.evidence["not_explained"]
+    # the primary vertical dampers absorb what the secondary damper does to the frame's
+    # vertical motion (1L fitted at a tenth of nominal): not an alarm with the suspect free
+    assert "primary.1L.cz" in [v.name for v in withheld], result.table()
+    assert not [v for v in result.alarms if v.name.startswith("primary.")]
     record = json.loads(json.dumps(result.to_dict()))
     assert record["explained"] is False and record["goodness_of_fit"]["misfits"]
     assert "DATA NOT EXPLAINED" in result.table()
-    print(result.table())
 
 
 def test_monitor_leaves_out_a_run_the_fit_cannot_explain(healthy, nominal):

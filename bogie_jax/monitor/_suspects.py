@@ -22,8 +22,9 @@ explain the data unless its test still holds with the top suspects free: the sig
 suspects (p below `alpha` / the number screened; at most `MAX_FREE`, the top one where none is
 significant) are added to the fit as extra columns, linearised at the fit (one Gauss-Newton
 step: the estimate moves by that step, its standard error by the ratio of the Gauss-Newton
-variances with and without the columns), and the element is judged again by the Wald rule at
-the same decision z (`_verdict.judge`, no profile). Where that verdict is no longer the alarm,
+variances with and without the columns), and the test that made the alarm is repeated at the
+same decision z: a Wald statistic at the freed estimate and error, a profile statistic scaled
+by the freed distance to the limit in ln p and by the errors' ratio. Where it no longer rejects,
 the alarm is withheld: the verdict becomes `not identifiable`, on watch where its 95 % interval
 lies outside the band, with the reason and both estimates in its evidence (`not_explained`).
 """
@@ -38,7 +39,7 @@ from ..params import element_names, get_parameter
 from ._elements import tied_group
 from ._goodness import group_excess
 from ._program import JointProgram
-from ._verdict import Verdict, interval_outside, judge
+from ._verdict import Verdict, interval_outside
 
 
 MAX_SUSPECTS = 5  # reported
@@ -164,26 +165,52 @@ def freed_step(jac, r, columns, index: int) -> tuple[float, float]:
     return -float(alone_wide @ r) / norm_wide, norm / norm_wide
 
 
+def decisive_test(verdict: Verdict) -> tuple[float, float, bool]:
+    """(limit, statistic, by profile) of the test that made `verdict`'s alarm: the failure
+    limit of a `failed`, the band's edge of a `degraded` element, on its estimate's side; the
+    profile statistic where it decided, else the Wald statistic (in p); NaN where none."""
+    band, estimate = verdict.band, verdict.estimate
+    below = estimate < band.healthy[0]
+    if verdict.verdict == "failed":
+        limit = band.failed_below if below else band.failed_above
+    else:
+        limit = band.healthy[0] if below else band.healthy[1]
+    for test in verdict.evidence.get("tests", []):
+        if test["limit"] == limit:
+            profile = test.get("profile") or {}
+            if profile.get("status") == "converged" and math.isfinite(profile["statistic"]):
+                return limit, float(profile["statistic"]), True
+            return limit, float(test["wald"]), False
+    return limit, math.nan, False
+
+
 def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
     """`verdict` (an alarm on coordinate `index` of `jac`) withheld where it does not hold with
-    `columns` free (module docstring); otherwise kept, with the check in its evidence."""
+    `columns` free (module docstring); otherwise kept, with the check in its evidence. The test
+    that made the alarm (`decisive_test`) is repeated at the freed estimate and standard error:
+    a Wald statistic exactly, a profile statistic scaled by the distance to the limit in ln p
+    and by the standard errors' ratio."""
     step, ratio = freed_step(jac, r, columns, index)
     with np.errstate(over="ignore"):
         estimate = float(verdict.estimate * np.exp(step))
     se = verdict.std_error * math.sqrt(ratio)
-    if not (math.isfinite(estimate) and math.isfinite(se)):
-        estimate, se = verdict.estimate, math.inf
-    again = judge(
-        verdict.name, estimate, se, verdict.band, z=verdict.evidence["z"],
-        dof=verdict.evidence.get("ci95_dof") or math.inf,
-    )  # fmt: skip
-    check = {"estimate": estimate, "std_error": se, "verdict": again.verdict}
+    limit, statistic, by_profile = decisive_test(verdict)
+    if not (math.isfinite(estimate) and math.isfinite(se) and math.isfinite(statistic)):
+        again = -math.inf
+    elif by_profile:
+        distance = math.log(verdict.estimate / limit)
+        again = statistic * math.log(estimate / limit) / distance / math.sqrt(ratio)
+    else:
+        again = (estimate - limit) / se * math.copysign(1.0, verdict.estimate - limit)
+    holds = bool(again > verdict.evidence["z"])
+    check = {"estimate": estimate, "std_error": se, "limit": limit, "statistic": again,
+             "holds": holds}  # fmt: skip
     evidence = dict(verdict.evidence, with_suspects_free=check)
-    if again.verdict in ("degraded", "failed"):
+    if holds:
         return dataclasses.replace(verdict, evidence=evidence)
     evidence.update(
         not_explained=True, withheld=verdict.verdict, reason="the fit does not explain the data "
-        f"and, with the suspects free, the data do not put the element outside its band "
+        f"and, with the suspects free, the data do not put the element beyond {limit:.4g} "
         f"(was {verdict.verdict}: {verdict.evidence.get('reason', '')})",
     )  # fmt: skip
     evidence.pop("watch", None)
