@@ -78,8 +78,8 @@ def channel_group(name: str, unit: str) -> str:
     """The group of a channel without a sensor layout, from its name (`frame_1L_z`: `frame
     vertical`; `frame_yaw_rate`: `yaw rate`) and unit."""
     parts = name.split("_")
-    if name.endswith("rate") or unit == "rad/s":
-        return RATES.get(parts[-2][-1:], "yaw rate") if len(parts) > 2 else name
+    if unit == "rad/s":
+        return next((r for r in RATES.values() if r.split()[0] in parts), f"{parts[0]} rate")
     kind = " displacement" if unit == "m" else ""
     return f"{parts[0]} {DIRECTIONS.get(parts[-1], parts[-1])}{kind}"
 
