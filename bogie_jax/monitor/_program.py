@@ -23,6 +23,7 @@ import numpy as np
 
 from ..cost import RunChannels, make_joint_objective, residual_jacobian
 from ..params import BogieParams
+from ..runtime.program_store import stored_program
 from ..runtime.solve_settings import SolveSettings
 from ..track import TrackIrregularity
 from ._nuisance import NuisanceLayout
@@ -30,6 +31,20 @@ from ._options import MonitorOptions
 
 
 _JACOBIAN = eqx.filter_jit(residual_jacobian)
+
+
+def _through_store(name: str, fn, objective, *args):
+    """`fn(objective, *args)` (`fn` a `filter_jit` function), from the program store where the
+    process keeps one (`bogie_jax.runtime.program_store`, as the command line does: a later
+    process on data of the same shapes traces nothing), else as it is. The store's key holds
+    `name` and the objective's static part (the arrays are the program's arguments)."""
+    dynamic, static = eqx.partition(objective, eqx.is_array)
+    jitted = jax.jit(lambda d, *a: fn(eqx.combine(d, static), *a))
+    stored = stored_program(jitted, (dynamic, *args), identity=(name, static))
+    if stored is None:
+        return fn(objective, *args)
+    call, out_tree = stored
+    return jax.tree.unflatten(out_tree, call(*jax.tree.leaves((dynamic, *args))))
 
 
 def _track_spec(objective):
@@ -156,7 +171,9 @@ class JointProgram:
         spec = _track_spec(self.objective)
         parts = [eqx.filter(self.on_records(e).objective, spec) for e in errors]
         directions = jax.tree.map(lambda *leaves: jnp.stack(leaves), *parts)
-        r, d = _track_derivatives(self.objective, jnp.asarray(x), directions)
+        r, d = _through_store(
+            "track_derivatives", _track_derivatives, self.objective, jnp.asarray(x), directions
+        )
         return np.asarray(r), np.asarray(d)
 
     @property
@@ -173,7 +190,8 @@ class JointProgram:
 
     def evaluate(self, x) -> tuple[np.ndarray, np.ndarray]:
         """r (m,) and dr/dx (m, n_x) at x, on the host (the first call compiles)."""
-        r, jac = jax.block_until_ready(_JACOBIAN(self.objective, jnp.asarray(x)))
+        r, jac = _through_store("residual_jacobian", _JACOBIAN, self.objective, jnp.asarray(x))
+        r, jac = jax.block_until_ready((r, jac))
         return np.asarray(r), np.asarray(jac)
 
 
