@@ -305,6 +305,7 @@ def run_case(cfg: dict, index: int) -> dict:
             "std_error_residuals": v.evidence.get("std_error_residuals"),
             "estimate_fitted": v.evidence.get("estimate_fitted"),
             "track_record_bias": v.evidence.get("track_record_bias"),
+            "track_record_bias_se": v.evidence.get("track_record_bias_se"),
             "track_record_bias_by_step": v.evidence.get("track_record_bias_by_step"),
             "watch": v.watch,
         }

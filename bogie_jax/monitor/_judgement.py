@@ -199,6 +199,9 @@ def judge_coordinates(tests: ProfileTests, statuses, stats: Statistics, member_w
             std_error_residuals=float(stats.se_residual[j]),
             estimate_fitted=float(c.nominal * np.exp(fit.phi[j])),  # before the bias
             track_record_bias=float(effect.bias[j]) if effect is not None else 0.0,  # in ln p
+            track_record_bias_se=(  # its Monte Carlo standard error, in ln p
+                float(np.sqrt(effect.bias_variance[j])) if effect is not None else 0.0
+            ),
             track_record_bias_by_step=(  # after each refit step: the refit's convergence
                 [float(b) for b in effect.bias_by_step[:, j]] if effect is not None else []
             ),
