@@ -7,12 +7,13 @@ tests/test_monitor.py (through the demo, which shares that module's compiled pro
 """
 
 import dataclasses
+import types
 
 import numpy as np
 import pytest
 
 from bogie_jax.cost import covariance_from_jacobian, with_model_error
-from bogie_jax.monitor import RecordError, record_error, track_error_effect
+from bogie_jax.monitor import RecordError, Sampling, record_error, track_error_effect
 from bogie_jax.track import TrackIrregularity, TrackReference
 
 
@@ -24,11 +25,12 @@ def _record(rng, n):
     return np.cumsum(rng.standard_normal((n, 3)), axis=0) * np.array([1e-4, 2e-4, 1e-4])
 
 
-def _differences(evaluate_at, tracks):
-    """`derivatives_at` of a model linear in its records: r(record + e) - r(record) is exactly
-    its derivative along e."""
+def _linear_fit(evaluate_at, tracks, derivatives_at=None):
+    """The `fit` of `track_error_effect` for `evaluate_at(tracks, phi) -> (r, J)`; by default
+    the derivatives of a model linear in its records: r(record + e) - r(record) is exactly its
+    derivative along e."""
 
-    def derivatives_at(errors, phi):
+    def differences(errors, phi):
         r0 = np.asarray(evaluate_at(tracks, phi)[0])
         shifted = [
             [TrackIrregularity(t.s0, t.ds, np.asarray(t.values) + np.asarray(e.values))
@@ -37,7 +39,9 @@ def _differences(evaluate_at, tracks):
         ]  # fmt: skip
         return r0, np.array([np.asarray(evaluate_at(x, phi)[0]) - r0 for x in shifted])
 
-    return derivatives_at
+    return types.SimpleNamespace(
+        evaluate_on=evaluate_at, track_derivatives=derivatives_at or differences
+    )
 
 
 def test_record_error_has_the_level_and_the_spectrum_of_the_model():
@@ -110,8 +114,8 @@ def test_covariance_of_the_shift_matches_its_closed_form():
 
     rms, draws = 3e-4, 2000
     effect = track_error_effect(
-        evaluate_at, _differences(evaluate_at, [track]), [track], np.zeros(n),
-        RecordError(rms, SEMI), draws=draws, seed=3,
+        _linear_fit(evaluate_at, [track]), [track], np.zeros(n), RecordError(rms, SEMI),
+        Sampling(draws, seed=3),
     )  # fmt: skip
     got = effect.covariance
     assert effect.draws == draws
@@ -164,8 +168,8 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
 
         tracks = [TrackIrregularity(0.0, 0.5, record)]
         effect = track_error_effect(
-            evaluate_at, _differences(evaluate_at, tracks), tracks, np.array([a_hat]),
-            RecordError(rms, SEMI), draws=16, seed=int(rng.integers(2**31)),
+            _linear_fit(evaluate_at, tracks), tracks, np.array([a_hat]), RecordError(rms, SEMI),
+            Sampling(16, seed=int(rng.integers(2**31))),
         )  # fmt: skip
         fitted.append(a_hat)
         corrected.append(a_hat - float(effect.bias[0]))
@@ -203,8 +207,8 @@ def test_each_pair_is_refitted_to_the_perturbed_records_minimum():
 
     tracks = [TrackIrregularity(0.0, 0.5, record)]
     effect = track_error_effect(
-        evaluate_at, _differences(evaluate_at, tracks), tracks, phi0, RecordError(rms, SEMI),
-        draws=40, pairs=20, refit_steps=6, seed=11,
+        _linear_fit(evaluate_at, tracks), tracks, phi0, RecordError(rms, SEMI),
+        Sampling(40, pairs=20, refit_steps=6, seed=11),
     )  # fmt: skip
     draws = np.random.default_rng(11)
     errors = [record_error(record, rms, SEMI, draws)[:, 0] for _ in range(40)]
@@ -240,26 +244,22 @@ def test_a_failed_draw_is_left_out():
 
     # one worker, in order: call 1 the start; pair 1: 2, 3 (its second step fails), 4, 5;
     # pairs 2, 3: 6 to 13
+    fit = _linear_fit(evaluate_at, [track], derivatives_at)
     effect = track_error_effect(
-        evaluate_at, derivatives_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=5,
-        pairs=3, refit_steps=2, workers=1,
-    )  # fmt: skip
+        fit, [track], np.zeros(2), RecordError(1e-4, SEMI), Sampling(5, pairs=3, workers=1)
+    )
     assert effect.draws == 4 and effect.refit_draws == 2 and effect.covariance.shape == (2, 2)
     assert effect.misfits.shape == (4, 10) and calls["n"] == 13
     assert np.all(np.isfinite(effect.covariance)) and np.all(np.isfinite(effect.bias))
     calls["n"] = 0
     again = track_error_effect(
-        evaluate_at, derivatives_at, [track], np.zeros(2), RecordError(1e-4, SEMI), draws=5,
-        pairs=3, refit_steps=2, workers=4,
-    )  # fmt: skip
+        fit, [track], np.zeros(2), RecordError(1e-4, SEMI), Sampling(5, pairs=3, workers=4)
+    )
     assert again.draws == 4 and calls["n"] == 13
     np.testing.assert_array_equal(again.covariance, effect.covariance)
-    for bad in ({"refit_steps": 0}, {"pairs": 0}):
+    for bad in ({"refit_steps": 0}, {"pairs": 0}, {"draws": 1.5}):
         with pytest.raises(ValueError, match=next(iter(bad))):
-            track_error_effect(
-                evaluate_at, derivatives_at, [track], np.zeros(2), RecordError(1e-4, SEMI),
-                draws=2, **bad,
-            )  # fmt: skip
+            Sampling(**{"draws": 2, **bad})
 
 
 def test_model_error_adds_to_the_covariance():

@@ -99,6 +99,7 @@ from ._suspects import (
 )
 from ._track_error import (
     RecordError as RecordError,
+    Sampling as Sampling,
     TrackErrorEffect as TrackErrorEffect,
     record_error as record_error,
     track_error_effect as track_error_effect,

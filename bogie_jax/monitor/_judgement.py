@@ -25,7 +25,7 @@ from ._elements import nominal_values
 from ._host_fit import HostFit
 from ._profile import ProfilePoint, profile_point
 from ._program import FitSpace
-from ._track_error import RecordError, TrackErrorEffect, track_error_effect
+from ._track_error import RecordError, Sampling, TrackErrorEffect, track_error_effect
 from ._verdict import Verdict, decision_z, judge
 
 
@@ -42,9 +42,9 @@ def track_record_term(space: FitSpace, fit: HostFit, say) -> TrackErrorEffect | 
     say(f"track record error {1e3 * o.track_error:.3g} mm: {o.track_error_draws} realisations")
     semi_distance = float(np.asarray(p.params.contact.contact_semi_distance))
     return track_error_effect(
-        space.evaluate_on, space.track_derivatives, p.tracks, fit.phi,
-        RecordError(o.track_error, semi_distance), draws=o.track_error_draws,
-        references=[m.track for m in p.measurements], start=(fit.r, fit.jac),
+        space, p.tracks, fit.phi, RecordError(o.track_error, semi_distance),
+        Sampling(o.track_error_draws), references=[m.track for m in p.measurements],
+        start=(fit.r, fit.jac),
     )  # fmt: skip
 
 

@@ -170,50 +170,64 @@ def _bias(means, steps: int, n: int):
     return means.mean(axis=0), len(means), np.broadcast_to(spread, (n,)).copy()
 
 
+@dataclasses.dataclass(frozen=True)
+class Sampling:
+    """How the records' error is sampled (module docstring): `draws` realisations from
+    `numpy.random.default_rng(seed)` for the covariance and the misfit; the first `pairs` of
+    them (>= 1), with and without their sign, refitted by `refit_steps` (>= 1) Gauss-Newton
+    steps for the bias; `workers` threads run the derivatives and the refits side by side
+    (`None`: one per core; the compiled programs release the interpreter while they run)."""
+
+    draws: int
+    pairs: int = BIAS_PAIRS
+    refit_steps: int = REFIT_STEPS
+    seed: int = 0
+    workers: int | None = None
+
+    def __post_init__(self):
+        for name in ("draws", "pairs", "refit_steps"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"`{name}` = {value!r} must be an integer >= 1")
+
+
 def track_error_effect(
-    evaluate_at, derivatives_at, tracks, phi, error: RecordError, *, draws,
-    pairs=BIAS_PAIRS, refit_steps=REFIT_STEPS, references=None, seed=0, start=None,
-    workers=None,
+    fit, tracks, phi, error: RecordError, sampling: Sampling, *, references=None, start=None
 ):  # fmt: skip
     """The `TrackErrorEffect` (module docstring) at the fit's estimate `phi` (n,).
 
-    - `evaluate_at(tracks, phi) -> (r (m,), J (m, n))`: the fit's residuals and Jacobian at
-      the coordinates `phi` with these track records (in the fit's weights, projection and
-      coordinates); `derivatives_at(errors, phi) -> (r (m,), D (K, m))`: r and its derivatives
-      along K record errors (K lists of one `TrackIrregularity` per run);
+    - `fit`: the fit's residuals on other records, with two methods (a `FitSpace`):
+      `evaluate_on(tracks, phi) -> (r (m,), J (m, n))`, its residuals and Jacobian at the
+      coordinates `phi` with these track records (in the fit's weights, projection and
+      coordinates), and `track_derivatives(errors, phi) -> (r (m,), D (K, m))`, r and its
+      derivatives along K record errors (K lists of one `TrackIrregularity` per run);
     - `tracks`: the runs' `TrackIrregularity` records; `error`: the `RecordError` model;
-      `references`: the runs' `TrackReference`s or `None`s (`record_error`);
-    - `draws` realisations from `numpy.random.default_rng(seed)` for the covariance and the
-      misfit, a draw whose derivative is not finite (a failed solve) left out; the first
-      `pairs` of them (>= 1), with and without their sign, refitted by `refit_steps` (>= 1)
-      Gauss-Newton steps for the bias, a pair with a failed refit left out;
-    - `start`: `evaluate_at(tracks, phi)` where the caller has it (the fit's last evaluation);
-    - `workers`: threads that run the derivatives and the refits side by side (default: one
-      per core; the compiled programs release the interpreter while they run).
+      `sampling`: `Sampling`; `references`: the runs' `TrackReference`s or `None`s
+      (`record_error`); `start`: `fit.evaluate_on(tracks, phi)` where the caller has it.
+
+    A draw whose derivative is not finite (a failed solve) is left out of the covariance and
+    the misfit, a pair with a failed refit of the bias.
     """
-    if not (isinstance(refit_steps, int) and refit_steps >= 1):
-        raise ValueError(f"`refit_steps` = {refit_steps!r} must be an integer >= 1")
-    if not (isinstance(pairs, int) and pairs >= 1):
-        raise ValueError(f"`pairs` = {pairs!r} must be an integer >= 1")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(sampling.seed)
     phi = np.asarray(phi, dtype=float)
     references = [None] * len(tracks) if references is None else list(references)
     errors = [
         [error.draw(t.values, rng, ref) for t, ref in zip(tracks, references)]
-        for _ in range(draws)
+        for _ in range(sampling.draws)
     ]  # fmt: skip
-    start = evaluate_at(list(tracks), phi) if start is None else start
+    start = fit.evaluate_on(list(tracks), phi) if start is None else start
     r0, j0 = (np.asarray(a, dtype=float) for a in start)
     changes = [[TrackIrregularity(t.s0, t.ds, e) for t, e in zip(tracks, es)] for es in errors]
-    perturbed = [_with_error(tracks, e, sign) for e in errors[:pairs] for sign in (1, -1)]
-    with ThreadPoolExecutor(workers or os.cpu_count() or 1) as pool:
-        derivatives = pool.submit(derivatives_at, changes, phi)
-        refits = [pool.submit(_refit, evaluate_at, x, phi, refit_steps) for x in perturbed]
+    perturbed = [_with_error(tracks, e, sign) for e in errors[: sampling.pairs] for sign in (1, -1)]
+    steps = sampling.refit_steps
+    with ThreadPoolExecutor(sampling.workers or os.cpu_count() or 1) as pool:
+        derivatives = pool.submit(fit.track_derivatives, changes, phi)
+        refits = [pool.submit(_refit, fit.evaluate_on, x, phi, steps) for x in perturbed]
         d = np.asarray(derivatives.result()[1], dtype=float)
         paths = [f.result() for f in refits]
     pinv = np.linalg.pinv(j0)
     step0 = pinv @ r0  # ~0 at a converged fit; subtracted so that no error gives no shift
-    by_step, n_pairs, bias_var = _bias(_pair_means(paths, phi, step0), refit_steps, phi.size)
+    by_step, n_pairs, bias_var = _bias(_pair_means(paths, phi, step0), steps, phi.size)
     d = d[np.all(np.isfinite(d), axis=1)]
     first = -(pinv @ d.T).T  # (K, n): each draw's first-order shift
     misfits = d - (j0 @ (pinv @ d.T)).T
