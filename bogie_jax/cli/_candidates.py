@@ -6,7 +6,7 @@ A candidate is any name `bogie_jax.monitor.MonitorOptions(candidates=...)` accep
 moving as one factor), or another parameter name (`bogie-jax identify --list-params`).
 """
 
-from ..monitor import DEFAULT_CANDIDATES
+from ..monitor import DEFAULT_CANDIDATES, check_candidates as check_monitor_candidates
 from ..params import element_names, resolve_parameter
 from ._common import UsageError
 
@@ -33,19 +33,14 @@ def add_options(p) -> None:
 def check_candidates(params, names) -> tuple[str, ...] | None:
     """`--candidates` as a tuple, or `None` (the default candidates) where it is not given.
 
-    **Raises:** `UsageError` for an unknown name (with the nearest valid names, from
-    `bogie_jax.params.resolve_parameter`) or a repeated one."""
+    **Raises:** `UsageError` for an unknown name (with the nearest valid names) or a repeated
+    one (`bogie_jax.monitor.check_candidates`)."""
     if names is None:
         return None
-    for name in names:
-        try:
-            resolve_parameter(params, name, " in `--candidates`")
-        except ValueError as e:
-            raise UsageError(str(e)) from None
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise UsageError(f"`--candidates` repeats {', '.join(repeated)}")
-    return tuple(names)
+    try:
+        return check_monitor_candidates(params, names, label="--candidates")
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
 
 def list_elements(params) -> str:

@@ -43,6 +43,7 @@ from ._elements import (
     WEIGHT_TOLERANCE as WEIGHT_TOLERANCE,
     Coordinate as Coordinate,
     ElementStatus as ElementStatus,
+    check_candidates as check_candidates,
     classify_elements as classify_elements,
     group_value as group_value,
     group_weights as group_weights,

@@ -99,18 +99,20 @@ def _json(x):
     return x
 
 
-def check_candidates(params: BogieParams, candidates) -> tuple[str, ...]:
-    """Candidate names, resolved (unknown names raise `ValueError`), unique, positive."""
+def check_candidates(params: BogieParams, candidates, label: str = "candidates") -> tuple[str, ...]:
+    """Candidate names (default `DEFAULT_CANDIDATES`), checked: `ValueError` naming `label`
+    (the argument or option they came from) for an empty list, a repeated name or an unknown
+    one (with the nearest valid names, `bogie_jax.params.resolve_parameter`)."""
     names = DEFAULT_CANDIDATES if candidates is None else tuple(candidates)
     if isinstance(candidates, str):
         names = (candidates,)
     if not names:
-        raise ValueError("`candidates` is empty: give at least one element name")
+        raise ValueError(f"`{label}` is empty: give at least one element name")
     dups = sorted({n for n in names if names.count(n) > 1})
     if dups:
-        raise ValueError(f"`candidates` repeats {', '.join(dups)}")
+        raise ValueError(f"`{label}` repeats {', '.join(dups)}")
     for name in names:
-        resolve_parameter(params, name, " in `candidates`")
+        resolve_parameter(params, name, f" in `{label}`")
     return names
 
 
