@@ -1,10 +1,13 @@
-"""The one compiled program `monitor` evaluates, and the fitted coordinates it is evaluated in.
+"""The compiled programs `monitor` evaluates, and the fitted coordinates they are evaluated in.
 
 `JointProgram` holds the runs' joint objective (`bogie_jax.cost.make_joint_objective`, forward
 mode, with each run's corrections where fitted) and evaluates its residuals r and their Jacobian
 with respect to x = [ln p of the candidates and nuisance parameters, run corrections]
 (`bogie_jax.cost.residual_jacobian`): one compiled program for the Fisher information, every
-fit, the profile tests and the track record's realisations, whatever records or runs are used.
+fit and horizon stage, the profile tests and the track record's refits, whatever records, runs
+or horizon are used. A second program gives r's derivatives along the track record's error
+draws (`track_derivatives`), for the records' term. Both go through the program store where
+the process keeps one (the command line).
 
 `FitSpace` maps the fitted coordinates v to x = B v (`_nuisance.NuisanceLayout.matrix`), keeps
 the rows within the fitted horizon (`_horizon.py`), removes the sensor bias by the projection
