@@ -154,7 +154,7 @@ def _visit(path, where, j, item) -> Visit:
 
 
 def _date(where, value) -> str:
-    """A TOML date (`2026-11-01`) or the text `"2026-11-01"` as ISO text."""
+    """A TOML date (YYYY-MM-DD) or the same as quoted text, as ISO text."""
     if isinstance(value, datetime.datetime):
         return value.date().isoformat()
     if isinstance(value, datetime.date):
