@@ -166,9 +166,10 @@ class JointProgram:
 
     def track_derivatives(self, x, errors) -> tuple[np.ndarray, np.ndarray]:
         """r (m,) at x and dr along each of the K record errors `errors` (K lists of one
-        `TrackIrregularity` per run: the change of each run's record) (K, m), on the host: r is
-        linear in a record's samples and their spline curvatures, so each is one directional
-        derivative (one compiled program for the K directions)."""
+        `TrackIrregularity` per run: the change of each run's record) (K, m), on the host. A
+        record enters r through its samples and their spline curvatures, both linear in the
+        samples, so dr along e is the forward-mode derivative along (e, e's curvatures): one
+        compiled program for the K directions."""
         if self.warming is not None:
             wait([self.warming])  # its compile, so that it is not done twice
         spec = _track_spec(self.objective)

@@ -19,8 +19,8 @@ the process's. A measured error spectrum would replace both.
 
 Propagation, to first order at the fit's end: the error e shifts the estimates by
 `dv = -J^+ D e` (J and r in the fitted coordinates, with the fit's weights and bias projection;
-the run corrections take their share; D e the residuals' derivative along e, exact because r is
-linear in a record's samples and their spline curvatures). The term is the mean of `dv dv^T`
+the run corrections take their share; D e the residuals' derivative along e: forward mode along
+e and its spline curvatures, which are linear in it). The term is the mean of `dv dv^T`
 over `draws` realisations (Monte Carlo: the relative error of a variance is about
 sqrt(2 / draws)); the draws' D e are one compiled program's directional derivatives, together.
 
