@@ -3,6 +3,7 @@ measurement files of its dated runs (`bogie_jax.io` NPZ, each with its synthetic
 reference) and the inventory naming them. For tests, the benchmark and demonstrations."""
 
 import dataclasses
+import datetime
 from pathlib import Path
 
 import jax.random as jr
@@ -12,13 +13,18 @@ from ..monitor import RunSpec, scenario_measurements
 from ._inventory import INVENTORY_FORMAT
 
 
+# a synthetic bogie's one visit by default: a fixed day, so that a fleet written twice is the same
+DEFAULT_VISIT = datetime.date(2026, 11, 1).isoformat()
+
+
 @dataclasses.dataclass(frozen=True)
 class SyntheticBogie:
-    """One bogie of a synthetic fleet: `id`, its defect `scenario` (a name), its `dates`."""
+    """One bogie of a synthetic fleet: `id`, its defect `scenario` (a name), its `dates`
+    (ISO days; default one visit, `DEFAULT_VISIT`)."""
 
     id: str
     scenario: str = "healthy"
-    dates: tuple[str, ...] = ("2026-11-01",)
+    dates: tuple[str, ...] = (DEFAULT_VISIT,)
 
 
 SHORT_RUNS = (
