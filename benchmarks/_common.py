@@ -2,6 +2,7 @@
 
 import datetime
 import json
+import math
 import platform
 import re
 import subprocess
@@ -46,6 +47,25 @@ def median_time(fn, repeats: int = 5) -> tuple[float, list[float]]:
         fn()
         times.append(time.perf_counter() - t0)
     return float(np.median(times)), times
+
+
+def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score 95 % interval of a binomial proportion k / n (Wilson, J. Am. Stat. Assoc. 22
+    (1927) 209-212); NaN for n = 0."""
+    if n == 0:
+        return (float("nan"), float("nan"))
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def rate(k: int, n: int) -> str:
+    """`k / n` as `p % (k/n; lo-hi)` with its Wilson interval in %; `-` for n = 0."""
+    if n == 0:
+        return "-"
+    lo, hi = wilson(k, n)
+    return f"{100 * k / n:.0f} % ({k}/{n}; {100 * lo:.0f}-{100 * hi:.0f})"
 
 
 def result_path(name: str, suffix: str) -> Path:

@@ -30,14 +30,25 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 - `channel-noise` (e): the layout keeps the sensors' nominal noise levels (the fit's weights
   are wrong by the ratio of the true f * RMS to the nominal noise_std, channel by channel);
 - `worn-wheels` (f): the true cone slope is nominal times a factor uniform in [0.7, 1.3];
+- model mismatch (issue 51; `benchmarks/_mismatch.py` defines each): `real-profile` (g: data
+  from the S1002/UIC60 1:40 contact table, the fit on the cone), `worn-profile` (h: data from
+  the measured worn wheel, the fit on the new S1002 profile), `track-white` (i: the record's
+  error white within 3-70 m wavelengths at 0.1-0.3 mm RMS), `track-drift` (i: a long-wave
+  record error, 70-200 m at 0.3-1 mm RMS; in both the monitor is told only the RMS),
+  `unjudged-defect` (j: a defect of an element that is not a candidate, in half of the
+  defective cases together with the candidate defect);
 - `none`: no imperfection; `all`: (a)-(f); `offset` is another name of `track`.
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal,
-options=MonitorOptions(track_error=<the records' error RMS, --track-error>))`, default options
-otherwise): truth, verdicts, estimates (and, with a track error, the fitted values before its
-bias is removed), standard errors, 95 % intervals, fit status (with the horizon stages fitted
-and the misfit ratio, `FitSummary`), each run's fitted speed factor and track position against their
-true values, wall times; each finished case is appended as one line of
+options=MonitorOptions(track_error=<the records' error RMS: --track-error's and the track
+modes'>))`, default options otherwise): truth, verdicts (with every `std_error_*` component of
+their evidence, and whether an alarm was withheld as not explained), estimates (and, with a
+track error, the fitted values before its bias is removed), standard errors, 95 % intervals,
+fit status (with the horizon stages fitted, the misfit ratio and the per-channel noise
+estimates, `FitSummary`), whether the data are explained (`MonitorResult.explained`) with the
+goodness-of-fit tests, the misfit run-groups and the suspects, each run's fitted speed factor
+and track position against their true values, the mismatch applied (with the unjudged defect's
+change of the signals over the noise), wall times; each finished case is appended as one line of
 `results/detection/<out>.jsonl` (per shard: `<out>.shard<i>of<n>.jsonl`) and a re-run skips
 the cases found there.
 
@@ -55,12 +66,17 @@ sqrt(2 / pi) times the mean relative standard error (E|e| of a normal error e wi
 deviation; the Gauss-Newton standard error is the Cramer-Rao bound of an unbiased estimate
 from these data and this track record), in all and of its residual term alone (without the
 track record's error); the same per group, and for the groups whose members' true values are
-equal apart from those whose members differ (where the weights matter). Rates carry Wilson
-95 % intervals.
+equal apart from those whose members differ (where the weights matter); issue 51's figures
+(`_mismatch.report`): no alarm on a healthy element, the 50 % anti-yaw damper found, the "not
+explained" rate, coverage per element, size error, and for `unjudged-defect` the "not
+explained" rate where the unjudged defect changes the signals by more than the noise. Rates
+carry Wilson 95 % intervals.
 
 Run (from the repository root):
     python benchmarks/detection.py --workers 16               # 100 cases, items 4 (a)-(c)
     python benchmarks/detection.py --imperfection speed        # 30 cases, one imperfection
+    python benchmarks/detection.py --imperfection unjudged-defect --duration 2 --cases 50 \
+        --workers 2                                            # a model-mismatch mode
     python benchmarks/detection.py --shard 0/2 --workers 16    # half the cases (other: 1/2)
     python benchmarks/detection.py --report                    # tables from the records only
     python benchmarks/detection.py --duration 8 --track-error 0.3 --out two_8s_runs
@@ -94,10 +110,9 @@ jax.config.update(
 )
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
-import jax.random as jr
 import numpy as np
 
-from bogie_jax.measure import default_sensor_layout, synthetic_measurement
+from bogie_jax.measure import default_sensor_layout
 from bogie_jax.monitor import (
     DEFAULT_CANDIDATES,
     DEFECT_SCENARIOS,
@@ -106,27 +121,32 @@ from bogie_jax.monitor import (
     interval_outside,
     monitor,
     nonlinear_options,
-    recorded_track,
-    with_channel_noise,
-    with_sensor_bias,
-    with_speed_error,
-    worn_wheels,
 )
-from bogie_jax.params import ModelOptions, get_parameter, manchester_benchmark
-from bogie_jax.track import TrackReference
+from bogie_jax.params import ModelOptions, manchester_benchmark
 
 
+# after the package: a process given another checkout's package (monitor_time.py) keeps it
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._common import RESULTS, write_outputs  # noqa: E402
+from benchmarks import _mismatch  # noqa: E402
+from benchmarks._cases import (  # noqa: E402
+    clean_runs,
+    record_tracks,
+    spoiled_runs,
+    track_length,
+    track_references,
+    value,
+)
+from benchmarks._common import RESULTS, rate, write_outputs  # noqa: E402
 
 
 FOLDER = RESULTS / "detection"
 
 
-IMPERFECTIONS = ("track", "speed", "bias", "nonlinear", "channel-noise", "worn-wheels")
+MATCHED_MODES = ("track", "speed", "bias", "nonlinear", "channel-noise", "worn-wheels")
+IMPERFECTIONS = (*MATCHED_MODES, *_mismatch.MODES)
 ALIASES = {
     "default": ("track", "speed", "bias"),
-    "all": IMPERFECTIONS,
+    "all": MATCHED_MODES,
     "none": (),
     "offset": ("track",),  # the track record: its error and its offset
 }
@@ -135,7 +155,6 @@ DEFECTS = tuple(n for n in DEFECT_SCENARIOS if n != "healthy")
 WEIGHTS = np.array([3.0 if n == HEADLINE else 1.0 for n in DEFECTS])
 ALARMS = ("degraded", "failed")
 N_CHANNELS = len(default_sensor_layout(manchester_benchmark()))
-WHEELBASE_MARGIN = 50.0  # [m] track beyond the longest run and the wheelbase
 
 
 def parse_imperfections(text: str) -> tuple[str, ...]:
@@ -146,6 +165,7 @@ def parse_imperfections(text: str) -> tuple[str, ...]:
                 f"--imperfection: unknown {name!r}; valid: {', '.join((*IMPERFECTIONS, *ALIASES))}"
             )
         out += ALIASES.get(name, (name,))
+    _mismatch.check_modes(out)
     return tuple(n for n in IMPERFECTIONS if n in out)
 
 
@@ -173,6 +193,7 @@ def config_of(args) -> dict:
         "false_alarm_rate": args.false_alarm_rate,
         # only when given: records written before the option existed keep their configuration
         **({"track_error_mm": float(args.track_error)} if args.track_error else {}),
+        **_mismatch.config(args.imperfections),
     }
 
 
@@ -196,72 +217,56 @@ def draw_case(cfg: dict, index: int) -> dict:
             -cfg["bias_fraction"], cfg["bias_fraction"], N_CHANNELS
         ).tolist(),
         "cone_slope_factor": float(rng.uniform(1 - cfg["max_wear"], 1 + cfg["max_wear"])),
+        **_mismatch.draw(rng),  # after the others: their values stay those of earlier records
     }
-
-
-def _value(params, name) -> float:
-    return float(np.asarray(get_parameter(params, name)))
 
 
 def case_inputs(cfg: dict, index: int) -> dict:
     """Case `index`'s bogie and `monitor`'s input (module docstring): `case` (its draws),
-    `nominal` and `truth` parameters, `scenario`, the measured `runs`, the recorded `tracks` and
-    the `options`."""
+    `nominal` and `truth` parameters, the candidate `scenario`, the `changed` elements, the
+    case's `label` (its row in the tables), its `mismatch` record (`_mismatch.bogies`, with
+    the unjudged defect's `signal_change` and the record errors' RMS where on), the measured
+    `runs`, the recorded `tracks` and the `options`."""
     case = draw_case(cfg, index)
     on = set(cfg["imperfections"])
-    nominal = manchester_benchmark()
-    scenario = DEFECT_SCENARIOS[case["scenario"]]
-    truth = scenario.true_params(nominal)
-    if "worn-wheels" in on:
-        truth = worn_wheels(truth, case["cone_slope_factor"])
+    bogie = _mismatch.bogies(on, case)
+    nominal, truth, mismatch = bogie["nominal"], bogie["truth"], dict(bogie["mismatch"])
     model = nonlinear_options() if "nonlinear" in on else ModelOptions()
-    duration, rate = cfg["duration_s"], cfg["sample_rate_hz"]
-    wheelbase = 2.0 * _value(nominal, "geometry.semi_wheelbase")
-    length = cfg["speed_range_m_s"][1] * duration + wheelbase + WHEELBASE_MARGIN
-    refs = [
-        TrackReference(spectrum=cfg["track_spectrum"], seed=s, length=length)
-        for s in case["track_seeds"]
-    ]
-    clean = [
-        synthetic_measurement(
-            truth,
-            ref.build(),
-            speed=v,
-            duration=duration,
-            sample_rate=rate,
-            track_reference=ref,
-            options=model,
+    duration = cfg["duration_s"]
+    length = track_length(nominal, cfg["speed_range_m_s"][1], duration)
+    refs = track_references(cfg["track_spectrum"], case["track_seeds"], length)
+
+    def simulate(params):
+        return clean_runs(
+            params, refs, case["speeds"], duration=duration, sample_rate=cfg["sample_rate_hz"],
+            model=model,
         )  # fmt: skip
-        for ref, v in zip(refs, case["speeds"])
-    ]
-    runs = with_channel_noise(
-        clean,
-        case["noise_fraction"],
-        key=jr.PRNGKey(case["noise_seed"]),
-        declared="channel-noise" not in on,
-    )
-    if "bias" in on:
-        runs = with_sensor_bias(runs, case["bias_fractions"])
-    if "speed" in on:
-        runs = tuple(with_speed_error(m, e) for m, e in zip(runs, case["speed_errors"]))
-    semi = _value(nominal, "contact.contact_semi_distance")
+
+    clean = simulate(truth)
+    if bogie["without_unjudged"] is not None:
+        without = simulate(bogie["without_unjudged"])
+        mismatch["signal_change"] = _mismatch.signal_change(clean, without, case["noise_fraction"])
+    runs = spoiled_runs(
+        clean, case["noise_fraction"], case["noise_seed"], declared="channel-noise" not in on,
+        bias=case["bias_fractions"] if "bias" in on else None,
+        speed_errors=case["speed_errors"] if "speed" in on else None,
+    )  # fmt: skip
+    semi = value(nominal, "contact.contact_semi_distance")
+    errors, told, entries = _mismatch.record_errors(on, refs, case, semi)
     track_on = "track" in on
-    tracks = [
-        recorded_track(
-            ref,
-            noise=cfg["track_noise_mm"] * 1e-3 if track_on else 0.0,
-            offset=off if track_on else 0.0,
-            semi_distance=semi,
-        )
-        for ref, off in zip(refs, case["offsets_m"])
-    ]
-    options = MonitorOptions(
-        false_alarm_rate=cfg["false_alarm_rate"],
-        track_error=1e-3 * cfg.get("track_error_mm", 0.0),
-    )
+    tracks = record_tracks(
+        refs, noise=cfg["track_noise_mm"] * 1e-3 if track_on else 0.0,
+        offsets=case["offsets_m"] if track_on else [0.0] * len(refs), semi_distance=semi,
+        errors=errors,
+    )  # fmt: skip
+    # the RMS the records' error is said to have: --track-error's and the track modes' together
+    track_error = math.hypot(1e-3 * cfg.get("track_error_mm", 0.0), told)
+    mismatch.update(entries, **({"track_error_told_m": track_error} if told else {}))
+    options = MonitorOptions(false_alarm_rate=cfg["false_alarm_rate"], track_error=track_error)
     return dict(
-        case=case, nominal=nominal, truth=truth, scenario=scenario, runs=runs, tracks=tracks,
-        options=options,
+        case=case, nominal=nominal, truth=truth, scenario=bogie["scenario"],
+        changed=bogie["changed"], label=bogie["label"], mismatch=mismatch, runs=runs,
+        tracks=tracks, options=options,
     )  # fmt: skip
 
 
@@ -274,7 +279,6 @@ def run_case(cfg: dict, index: int) -> dict:
     try:
         inputs = case_inputs(cfg, index)
         case, nominal, truth = inputs["case"], inputs["nominal"], inputs["truth"]
-        scenario = inputs["scenario"]
         record["simulate_s"] = time.perf_counter() - tic
         t0 = time.perf_counter()
         result = monitor(
@@ -284,33 +288,15 @@ def run_case(cfg: dict, index: int) -> dict:
     except (RuntimeError, ValueError) as e:
         record.update(error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - tic)
         return record
-    record["truth"] = {n: _value(truth, n) for n in DEFAULT_CANDIDATES}
-    record["nominal"] = {n: _value(nominal, n) for n in DEFAULT_CANDIDATES}
-    record["changed"] = list(scenario.elements)
-    record["verdicts"] = [
-        {
-            "name": v.name,
-            "verdict": v.verdict,
-            "estimate": v.estimate,
-            "std_error": v.std_error,
-            "ci95": list(v.ci95),
-            "ci95_dof": v.evidence.get("ci95_dof"),
-            "healthy_band": list(v.band.healthy),
-            "members": list(v.evidence.get("members") or [v.name]),
-            "member_weights": v.evidence.get("member_weights"),
-            "identifiable": v.evidence.get("identifiable", ""),
-            "tests": v.evidence.get("tests", []),
-            "std_error_gauss_newton": v.evidence.get("std_error_gauss_newton"),
-            "std_error_track_record": v.evidence.get("std_error_track_record"),
-            "std_error_residuals": v.evidence.get("std_error_residuals"),
-            "estimate_fitted": v.evidence.get("estimate_fitted"),
-            "track_record_bias": v.evidence.get("track_record_bias"),
-            "track_record_bias_se": v.evidence.get("track_record_bias_se"),
-            "track_record_bias_by_step": v.evidence.get("track_record_bias_by_step"),
-            "watch": v.watch,
-        }
-        for v in result.verdicts
-    ]
+    record["truth"] = {n: value(truth, n) for n in DEFAULT_CANDIDATES}
+    record["nominal"] = {n: value(nominal, n) for n in DEFAULT_CANDIDATES}
+    record["changed"] = list(inputs["changed"])
+    record["scenario"] = inputs["label"]
+    record["candidate_scenario"] = inputs["scenario"].name
+    record["mismatch"] = inputs["mismatch"]
+    record["verdicts"] = [verdict_record(v) for v in result.verdicts]
+    record["explained"] = bool(result.explained)
+    record["goodness"] = None if result.goodness is None else result.goodness.to_dict()
     record["fit"] = {
         "status": result.fit.status,
         "steps": result.fit.steps,
@@ -319,6 +305,7 @@ def run_case(cfg: dict, index: int) -> dict:
         "runs_used": result.fit.runs_used,
         "horizons": list(result.fit.horizons),
         "misfit_ratio": result.fit.misfit_ratio,
+        "channel_noise": [list(c) for c in result.fit.channel_noise],
     }
     record["runs"] = [
         {
@@ -332,6 +319,40 @@ def run_case(cfg: dict, index: int) -> dict:
     record["monitor_timings"] = dict(result.timings)
     record["wall_s"] = time.perf_counter() - tic
     return _finite(record)
+
+
+EVIDENCE = (  # what a verdict's record keeps of its evidence, besides every std_error_* number
+    "ci95_dof", "member_weights", "estimate_fitted", "track_record_bias",
+    "track_record_bias_se", "track_record_bias_by_step", "not_explained", "withheld",
+)  # fmt: skip
+
+
+def verdict_record(v) -> dict:
+    """A verdict as the record keeps it: name, verdict, estimate, standard error, interval,
+    band, members, identifiability, tests, `watch`, the `EVIDENCE` entries and every numeric
+    `std_error_*` entry of its evidence (its standard error's components, whichever the monitor
+    reports)."""
+    ev = v.evidence
+    components = {
+        k: float(x)
+        for k, x in ev.items()
+        if k.startswith("std_error_") and isinstance(x, (int, float, np.number))
+        and not isinstance(x, bool)
+    }  # fmt: skip
+    return {
+        "name": v.name,
+        "verdict": v.verdict,
+        "estimate": v.estimate,
+        "std_error": v.std_error,
+        "ci95": list(v.ci95),
+        "healthy_band": list(v.band.healthy),
+        "members": list(ev.get("members") or [v.name]),
+        "identifiable": ev.get("identifiable", ""),
+        "tests": ev.get("tests", []),
+        **{k: ev.get(k) for k in EVIDENCE},
+        **components,
+        "watch": v.watch,
+    }
 
 
 def _finite(x):
@@ -468,16 +489,6 @@ def run_cases(args, cfg) -> None:
 # --- aggregates ---
 
 
-def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """Wilson score 95 % interval of a binomial proportion k / n (Wilson 1927)."""
-    if n == 0:
-        return (float("nan"), float("nan"))
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (max(0.0, centre - half), min(1.0, centre + half))
-
-
 def judged(rec: dict):
     """(verdict, relative estimate, relative truth, covered) per judged verdict of a record
     (finite standard error); a group's nominal is its members' mean and its truth that times
@@ -538,21 +549,14 @@ def case_outcome(rec: dict) -> dict:
     }
 
 
-def _pct(k, n):
-    if n == 0:
-        return "-"
-    lo, hi = wilson(k, n)
-    return f"{100 * k / n:.0f} % ({k}/{n}; {100 * lo:.0f}-{100 * hi:.0f})"
-
-
 def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
     ok = [r for r in records.values() if "error" not in r]
     failed = [r for r in records.values() if "error" in r]
     by_type: dict[str, list] = {}
-    for r in ok:
-        by_type.setdefault(r["case"]["scenario"], []).append(r)
+    for r in ok:  # the case's label: its scenario, or with an unjudged defect what it holds
+        by_type.setdefault(r.get("scenario", r["case"]["scenario"]), []).append(r)
     rows, summary = [], {"by_type": {}, "by_element": {}}
-    for name in ("healthy", *DEFECTS):
+    for name in ("healthy", *DEFECTS, *sorted(set(by_type) - {"healthy", *DEFECTS})):
         recs = by_type.get(name, [])
         if not recs:
             continue
@@ -573,14 +577,14 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
         }  # fmt: skip
         if name == "healthy":
             rows.append(
-                f"| healthy | {n} | false alarm {_pct(alarms, n)} | - | {wrong} | - / {watch[1]} "
-                f"| - | {_pct(sum(cover), len(cover))} | {time_s:.0f} |"
+                f"| healthy | {n} | false alarm {rate(alarms, n)} | - | {wrong} | - / {watch[1]} "
+                f"| - | {rate(sum(cover), len(cover))} | {time_s:.0f} |"
             )
         else:
             rows.append(
-                f"| {name} | {n} | {_pct(alarms, n)} | {_pct(correct, alarms)} | {wrong} | "
+                f"| {name} | {n} | {rate(alarms, n)} | {rate(correct, alarms)} | {wrong} | "
                 f"{watch[0]} / {watch[1]} | {mae} |"
-                f" {_pct(sum(cover), len(cover))} | {time_s:.0f} |"
+                f" {rate(sum(cover), len(cover))} | {time_s:.0f} |"
             )
     elem_rows = []
     group_names = sorted(
@@ -610,7 +614,7 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
         }  # fmt: skip
         elem_rows.append(
             f"| {label} | {len(per)} | {100 * np.mean(err):.2f} | {100 * implied[0]:.2f} | "
-            f"{100 * implied[1]:.2f} | {_pct(cov, len(per))} |"
+            f"{100 * implied[1]:.2f} | {rate(cov, len(per))} |"
         )
     walls = [r["wall_s"] for r in ok]
     first = [r["wall_s"] for r in ok if r.get("process_case_number") == 1]
@@ -622,6 +626,9 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
     )  # fmt: skip
     imps = ", ".join(cfg["imperfections"]) or "none"
     md_targets = targets(summary)
+    summary["mismatch"], mismatch_md = _mismatch.report(
+        ok, [case_outcome(r) for r in ok], summary["by_element"], HEADLINE, rate
+    )
     md = [
         f"# Detection benchmark: {len(records)} cases, imperfections: {imps}",
         "",
@@ -658,6 +665,8 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
         "error alone, without the track record's error (the same where it is not given).",
         "",
         *md_targets,
+        "",
+        *mismatch_md,
         "",
         f"Wall time per case: median {summary['median_wall_s']:.0f} s; first case of a process "
         f"(compiles) {_s(summary['median_first_case_wall_s'])}, later cases "
@@ -770,9 +779,9 @@ def main(argv=None):
         ("--noise-range", args.noise_range, 0 < args.noise_range[0] <= args.noise_range[-1]),
         ("--max-wear", args.max_wear, 0 <= args.max_wear < 1),
     )
-    for name, value, ok in checks:
+    for name, given, ok in checks:
         if not ok:
-            raise SystemExit(f"{name} = {value!r} is out of range")
+            raise SystemExit(f"{name} = {given!r} is out of range")
     cfg = config_of(args)
     if not args.report:
         run_cases(args, cfg)

@@ -28,57 +28,42 @@ Run (from the repository root):
     python benchmarks/goodness_of_fit.py --kind matched --cases 8 --track-noise 0
 """
 
-import os
-
-
-os.environ.setdefault("EQX_ON_ERROR", "nan")
-
 import argparse
 import json
 import sys
 import time
 from pathlib import Path
 
-import jax
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import numpy as np  # noqa: E402
 
-jax.config.update("jax_enable_x64", True)
-jax.config.update(
-    "jax_compilation_cache_dir", str(Path(__file__).resolve().parents[1] / ".jax_cache")
+# detection.py sets up the process its cases need (runtime errors as NaN, x64, the persistent
+# compilation cache) before the package loads; these cases are built as its cases are
+from benchmarks import detection  # noqa: E402, F401
+from benchmarks._cases import (  # noqa: E402
+    clean_runs,
+    record_tracks,
+    spoiled_runs,
+    track_length,
+    track_references,
+    value,
 )
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
-
-import jax.random as jr
-import numpy as np
-
-from bogie_jax.measure import synthetic_measurement
-from bogie_jax.monitor import (
+from benchmarks._common import RESULTS, wilson, write_outputs  # noqa: E402
+from bogie_jax.monitor import (  # noqa: E402
     DEFECT_SCENARIOS,
     FAILED_FLOOR,
     DefectScenario,
     MonitorOptions,
     monitor,
     nonlinear_options,
-    recorded_track,
-    with_channel_noise,
-    with_sensor_bias,
-    with_speed_error,
 )
-from bogie_jax.params import ModelOptions, get_parameter, manchester_benchmark
-from bogie_jax.track import TrackReference
-
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._common import RESULTS, write_outputs  # noqa: E402
+from bogie_jax.params import ModelOptions, manchester_benchmark  # noqa: E402
 
 
 FOLDER = RESULTS / "goodness_of_fit"
 KINDS = ("matched", "secondary-damper", "nonlinear")
 SECONDARY = DefectScenario("secondary-damper", factors={"secondary.left.cz": FAILED_FLOOR})
-
-
-def _value(params, name) -> float:
-    return float(np.asarray(get_parameter(params, name)))
 
 
 def case_data(kind: str, index: int, args):
@@ -91,33 +76,25 @@ def case_data(kind: str, index: int, args):
     else:
         scenario = DEFECT_SCENARIOS["healthy"]
     nominal = manchester_benchmark()
-    truth = scenario.true_params(nominal)
     model = nonlinear_options() if kind == "nonlinear" else ModelOptions()
     speeds = rng.uniform(30.0, 60.0, 2)
-    seeds = rng.integers(0, 2**31 - 10_000, 2)
-    length = 60.0 * args.duration + 2 * _value(nominal, "geometry.semi_wheelbase") + 50.0
-    refs = [TrackReference(spectrum="erri-low", seed=int(s), length=length) for s in seeds]
-    clean = [
-        synthetic_measurement(
-            truth,
-            r.build(),
-            speed=float(v),
-            duration=args.duration,
-            sample_rate=args.sample_rate,
-            track_reference=r,
-            options=model,
-        )  # fmt: skip
-        for r, v in zip(refs, speeds)
-    ]
+    refs = track_references(
+        "erri-low", rng.integers(0, 2**31 - 10_000, 2), track_length(nominal, 60.0, args.duration)
+    )
+    clean = clean_runs(
+        scenario.true_params(nominal), refs, speeds, duration=args.duration,
+        sample_rate=args.sample_rate, model=model,
+    )  # fmt: skip
     noise = float(rng.uniform(0.01, 0.03))
-    runs = with_channel_noise(clean, noise, key=jr.PRNGKey(int(rng.integers(0, 2**31))))
-    runs = with_sensor_bias(runs, rng.uniform(-0.05, 0.05, len(runs[0].channels)))
-    runs = tuple(with_speed_error(m, e) for m, e in zip(runs, rng.uniform(-0.01, 0.01, 2)))
-    semi = _value(nominal, "contact.contact_semi_distance")
-    tracks = [
-        recorded_track(r, noise=1e-3 * args.track_noise, offset=float(o), semi_distance=semi)
-        for r, o in zip(refs, rng.uniform(-0.5, 0.5, 2))
-    ]
+    noise_seed = int(rng.integers(0, 2**31))
+    bias = rng.uniform(-0.05, 0.05, len(clean[0].channels))
+    runs = spoiled_runs(
+        clean, noise, noise_seed, bias=bias, speed_errors=rng.uniform(-0.01, 0.01, 2)
+    )
+    tracks = record_tracks(
+        refs, noise=1e-3 * args.track_noise, offsets=rng.uniform(-0.5, 0.5, 2),
+        semi_distance=value(nominal, "contact.contact_semi_distance"),
+    )  # fmt: skip
     return runs, tracks, nominal, scenario.name
 
 
@@ -151,13 +128,12 @@ def load(path: Path) -> dict[int, dict]:
     return out
 
 
-def _wilson(k: int, n: int, z: float = 1.96) -> str:
-    """The Wilson 95 % interval of a rate k / n, as `[lo, hi] %`."""
+def _wilson(k: int, n: int) -> str:
+    """The Wilson 95 % interval of a rate k / n (`_common.wilson`), as `[lo, hi] %`."""
     if not n:
         return "-"
-    p, d = k / n, 1 + z**2 / n
-    centre, half = (p + z**2 / (2 * n)) / d, z * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / d
-    return f"[{100 * (centre - half):.1f}, {100 * (centre + half):.1f}] %"
+    lo, hi = wilson(k, n)
+    return f"[{100 * lo:.1f}, {100 * hi:.1f}] %"
 
 
 def summary(records: list[dict], args) -> tuple[dict, str]:

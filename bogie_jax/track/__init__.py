@@ -12,6 +12,7 @@ from ._irregularity import (
 from ._psd import (
     AbstractTrackPSD as AbstractTrackPSD,
     ERRIB176Spectrum as ERRIB176Spectrum,
+    FlatSpectrum as FlatSpectrum,
     FRASpectrum as FRASpectrum,
 )
 from ._reference import (

@@ -176,3 +176,56 @@ _FRA_CLASSES = {
     5: (0.2095, 0.0762, 0.8209),
     6: (0.0339, 0.0339, 0.4380),
 }
+
+
+class FlatSpectrum(AbstractTrackPSD):
+    """A white spectrum: one constant one-sided PSD per channel at every frequency.
+
+    `S(omega) = (A_a, A_v, A_c)` for every `omega`. Synthesised over a wavelength band
+    (`synthesise_track(..., wavelength_band=...)`) it gives band-limited white irregularity,
+    whose variance is the level times the band's width in rad/m,
+    `sigma^2 = A (2 pi / lambda_min - 2 pi / lambda_max)` (the one-sided convention of this
+    module): a model of an irregularity, or of a measurement error, that is not shaped like a
+    track spectrum (e.g. a recording system's sensor noise within its recording band).
+
+    **Fields:** `alignment`, `vertical` [m^2/(rad/m)]; `cross_level` [rad^2/(rad/m)]. Build one
+    from RMS values over a band with `FlatSpectrum.with_rms`.
+    """
+
+    alignment: float = _spectrum_field()
+    vertical: float = _spectrum_field()
+    cross_level: float = _spectrum_field()
+
+    def __check_init__(self):
+        _check_positive_fields(self)
+
+    @classmethod
+    def with_rms(
+        cls,
+        alignment: float,
+        vertical: float,
+        cross_level: float,
+        wavelength_band: tuple[float, float] = (3.0, 70.0),
+    ) -> "FlatSpectrum":
+        """The levels whose variance over `wavelength_band` `(lambda_min, lambda_max)` [m] is
+        each channel's RMS squared: `alignment`, `vertical` [m], `cross_level` [rad], each > 0.
+
+        **Raises:** `ValueError` for a band that is not `0 < lambda_min < lambda_max < inf` or
+        an RMS that is not finite and > 0.
+        """
+        lam_min, lam_max = (float(x) for x in wavelength_band)
+        if not 0.0 < lam_min < lam_max < np.inf:
+            raise ValueError(
+                f"`wavelength_band` must satisfy 0 < lambda_min < lambda_max < inf [m]; "
+                f"got {wavelength_band!r}"
+            )
+        width = 2.0 * np.pi / lam_min - 2.0 * np.pi / lam_max  # [rad/m]
+        rms = {"alignment": alignment, "vertical": vertical, "cross_level": cross_level}
+        for name, value in rms.items():
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"RMS `{name}` = {value!r} must be finite and > 0")
+        return cls(**{name: float(value) ** 2 / width for name, value in rms.items()})
+
+    def __call__(self, omega: ArrayLike) -> Float[Array, "*omega 3"]:
+        levels = jnp.stack([self.alignment, self.vertical, self.cross_level])
+        return jnp.ones_like(jnp.asarray(omega, dtype=levels.dtype))[..., None] * levels
