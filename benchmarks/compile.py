@@ -25,6 +25,7 @@ recorded (1-minute load average before and after every program).
 import argparse
 import datetime
 import importlib
+import importlib.util
 import json
 import os
 import platform
@@ -59,9 +60,9 @@ PROGRAMS = {
     "jacfwd10": ("jacfwd(JacobianResiduals), 10 parameters", "all10", 1),
     "grad3": ("grad(cost), full checkpoints, 3 parameters", "default", 1),
     "grad10": ("grad(cost), full checkpoints, 10 parameters", "all10", 1),
-    "fit3": ("one LM fit from nominal (fit's program), 3 parameters", "default", 1),
-    "multistart3": (f"sharded queued LM, {N_STARTS} starts, 3 parameters", "default", 2),
-    "multistart10": (f"sharded queued LM, {N_STARTS} starts, 10 parameters", "all10", 2),
+    "fit3": ("fit's LM program (one residual-Jacobian evaluation), 3 parameters", "default", 1),
+    "multistart3": (f"multistart LM program, {N_STARTS} starts, 3 parameters", "default", 2),
+    "multistart10": (f"multistart LM program, {N_STARTS} starts, 10 parameters", "all10", 2),
     "anneal3": (f"annealing piece of {ANNEAL_PIECE} proposals, 3 parameters", "default", 1),
     "stability_sweep": ("stability_sweep over 30 speeds", None, 1),
     "critical_speed": ("critical_speed (grid + bisection)", None, 1),
@@ -124,26 +125,31 @@ def build_grad(scenario):
 
 
 def build_fit(scenario):
-    """The program `fit` compiles: the LM solve and the statistics at its end."""
+    """The program `fit` compiles for the LM: the residual Jacobian and free parameters that
+    each LM iteration evaluates (older checkouts: the compiled LM solve and its statistics)."""
     from bogie_jax.identify import LOCAL_METHODS, as_problem
 
     objective, theta = scenario_objective(scenario)
-    fit_program = internal("bogie_jax.identify._local", "_fit_jit")
-    fit_program = getattr(fit_program, "__wrapped__", fit_program)
     problem = as_problem(objective)
-    return jit_module_fn(
-        lambda pm, th: fit_program(pm[0], th, pm[1], 256, 1e-6),
-        (problem, LOCAL_METHODS["lm"]),
-        theta,
-    )
+    try:
+        evaluation = internal("bogie_jax.identify._lm_fits", "evaluation")
+    except ModuleNotFoundError:  # the LM as an optimistix solver, compiled whole
+        fit_program = internal("bogie_jax.identify._local", "_fit_jit")
+        fit_program = getattr(fit_program, "__wrapped__", fit_program)
+        return jit_module_fn(
+            lambda pm, th: fit_program(pm[0], th, pm[1], 256, 1e-6),
+            (problem, LOCAL_METHODS["lm"]),
+            theta,
+        )
+    return jit_module_fn(lambda pm, th: evaluation(pm, th, 1e-6), problem, theta)
 
 
 def build_multistart(scenario):
-    """The sharded batch `BatchedFits` compiles ahead of time, captured at its runner's
-    `BatchRunner.compile(batch)` as `BatchRunner.program(batch)` (older checkouts: at their
+    """The sharded program `BatchedFits` compiles ahead of time (the LM's: the evaluation of the
+    fits in flight; older checkouts: the queued LM loop), captured at its runner's
+    `BatchRunner.compile(batch)` as `BatchRunner.program(batch)` (older still: at their
     `ahead_of_time(jitted)` call): the runner's own inputs, already placed on the devices."""
     import bogie_jax.runtime.batch
-    import bogie_jax.runtime.queued_batch
     from bogie_jax.identify import LatinHypercube
 
     objective, _ = scenario_objective(scenario)
@@ -166,8 +172,9 @@ def build_multistart(scenario):
 
     if hasattr(bogie_jax.runtime.batch, "BatchRunner"):
         bogie_jax.runtime.batch.BatchRunner.compile = capture_compile
-    for module in (bogie_jax.runtime.batch, bogie_jax.runtime.queued_batch):
-        if hasattr(module, "ahead_of_time"):
+    for name in ("bogie_jax.runtime.batch", "bogie_jax.runtime.queued_batch"):
+        module = importlib.util.find_spec(name) and importlib.import_module(name)
+        if module and hasattr(module, "ahead_of_time"):
             module.ahead_of_time = capture
     selection = objective.selection
     lower, upper = np.asarray(selection.lower), np.asarray(selection.upper)
@@ -261,11 +268,12 @@ def build_part_sensors(scenario):
 
 
 def build_part_linear_solve(scenario):
-    """One least-squares step of LM's size: `[J; sqrt(lambda) I]` of the 3-parameter fit."""
-    from bogie_jax.identify import LOCAL_METHODS
+    """One least-squares step of a damped Gauss-Newton step's size, `[J; sqrt(lambda) I]` of the
+    3-parameter fit, by the `HouseholderQR` of optimistix's least-squares methods."""
+    from bogie_jax.identify import HouseholderQR
 
     objective, _ = scenario_objective(scenario)
-    qr = LOCAL_METHODS["lm"].solver.descent.linear_solver
+    qr = HouseholderQR()
     m, n = objective.n_residuals + objective.n_params, objective.n_params
     a = jax.random.normal(jax.random.PRNGKey(0), (m, n))
     b = jnp.ones(m)

@@ -6,10 +6,11 @@ Issue 15, item 5: per start, the measured fit time should be within 1.5x of (LM 
 ODE rtol 1e-6), `fit_multistart_chunked` with identify's defaults (8 LHS starts, key 0, LM,
 100 steps, chunks of 2 per device, `lanes="auto"`), then the residuals and their forward-mode
 Jacobian at each start's end, compiled alone (`residual_jacobian`, one device) and timed as the
-median of 5 calls. Every LM step evaluates the residuals and the Jacobian once, at its trial
-point; a device runs the starts of its block of each chunk one after the other. So a chunk's
-predicted time is the largest, over the devices, of (the device's starts' steps) x (the
-evaluation time). The queue does not time its starts one by one, so the check is per chunk.
+median of 5 calls. A fit evaluates the residuals and the Jacobian once at its start and once per
+step, at its trial point (`num_fn_evals`); each LM iteration evaluates every lane's fit at once
+(one lane per device), and a lane whose fit has ended takes the chunk's next start. So a chunk's
+predicted time is its queue's iterations (`queue_iterations`) x the evaluation time. The queue
+does not time its starts one by one, so the check is per chunk.
 
 Run (from the repository root): `python benchmarks/fit_time.py` (about 2 minutes on 2 cores).
 """
@@ -35,11 +36,21 @@ from bogie_jax.cost import residual_jacobian  # noqa: E402
 from bogie_jax.identify import (  # noqa: E402
     default_chunk,
     fit_multistart_chunked,
+    queue_lanes,
     scenario_problem,
 )
 
 
 N_STARTS = 8
+
+
+def queue_iterations(evaluations, lanes: int) -> int:
+    """Iterations of the LM's queue over fits of `evaluations` each, in order: a fit takes the
+    lane that frees first (the lowest-numbered among equal ones)."""
+    load = [0] * lanes
+    for e in evaluations:
+        load[int(np.argmin(load))] += int(e)
+    return max(load)
 
 
 def main() -> None:
@@ -61,6 +72,7 @@ def main() -> None:
     )
     records = run.result.records()
     steps = np.array([r["num_steps"] for r in records])
+    evaluations = np.array([r["num_fn_evals"] for r in records])
     evaluate = eqx.filter_jit(residual_jacobian)
     ends = np.asarray(jax.vmap(objective.selection.to_theta)(run.result.ends))
     jax.block_until_ready(evaluate(objective, ends[0]))  # compile
@@ -70,19 +82,18 @@ def main() -> None:
     per_eval = float(np.median(eval_times))
     rows = []
     measured_chunks = np.diff([0.0, *chunk_times])
-    per_device = chunk // jax.device_count()
+    lanes = queue_lanes("auto", objective.selection.n_params) * jax.device_count()
     for k, measured in enumerate(measured_chunks):
         idx = np.arange(k * chunk, min((k + 1) * chunk, N_STARTS))
-        device_steps = [
-            int(steps[idx[d : d + per_device]].sum()) for d in range(0, len(idx), per_device)
-        ]
-        predicted = max(device_steps) * per_eval
+        iterations = queue_iterations(evaluations[idx], lanes)
+        predicted = iterations * per_eval
         rows.append(
             dict(
                 chunk=k,
                 starts=idx.tolist(),
                 steps=steps[idx].tolist(),
-                device_steps=device_steps,
+                evaluations=evaluations[idx].tolist(),
+                iterations=iterations,
                 predicted_s=predicted,
                 measured_s=float(measured),
                 ratio=float(measured / predicted),
@@ -95,19 +106,24 @@ def main() -> None:
         f'{chunk}, `lanes="auto"`; one residual + Jacobian evaluation alone: median '
         f"{per_eval:.3f} s (per end point {min(eval_times):.3f}-{max(eval_times):.3f} s).",
         "",
-        "| chunk | starts | LM steps | steps per device | predicted s | measured s | ratio |",
-        "| ---: | --- | --- | --- | ---: | ---: | ---: |",
+        "| chunk | starts | LM steps | evaluations | queue iterations | predicted s | measured s "
+        "| ratio |",
+        "| ---: | --- | --- | --- | ---: | ---: | ---: | ---: |",
     ]
     for r in rows:
         lines.append(
-            f"| {r['chunk']} | {r['starts']} | {r['steps']} | {r['device_steps']} "
+            f"| {r['chunk']} | {r['starts']} | {r['steps']} | {r['evaluations']} "
+            f"| {r['iterations']} "
             f"| {r['predicted_s']:.2f} | {r['measured_s']:.2f} | {r['ratio']:.2f} |"
         )
     total_pred = sum(r["predicted_s"] for r in rows)
     total = sum(r["measured_s"] for r in rows)
     lines += ["", f"All chunks: predicted {total_pred:.2f} s, measured {total:.2f} s, "
               f"ratio {total / total_pred:.2f}."]  # fmt: skip
-    extra = dict(per_eval_s=per_eval, eval_times_s=eval_times, steps=steps.tolist())
+    extra = dict(
+        per_eval_s=per_eval, eval_times_s=eval_times, steps=steps.tolist(),
+        evaluations=evaluations.tolist(),
+    )  # fmt: skip
     write_outputs("fit_time/fit_vs_steps_x_evaluation", rows, "\n".join(lines) + "\n", extra=extra)
 
 

@@ -66,12 +66,14 @@ from bogie_jax.identify import (
     anneal_start,
     anneal_steps,
     as_problem,
+    batched_fits,
     design_starts,
     relative_errors,
     scenario_problem,
     stack_objectives,
     start_theta,
     statistics,
+    supports_queue,
 )
 
 
@@ -272,11 +274,19 @@ def _local_solve(problem, theta0, method, max_steps):
 
 
 def _compiled_local(problem, theta0, method, max_steps, cache):
-    """The local solve (the member function of the batched fits, without statistics),
-    compiled ahead of time once per method, parameter count and step budget."""
+    """`solve(problem, theta, method, max_steps) -> LocalOutput`: one local fit without
+    statistics, compiled ahead of time once per method, parameter count and step budget (the
+    LM: its evaluation program for one fit on one device, the problem an input)."""
     key = ("local", method, theta0.size, max_steps)
     if key not in cache:
-        cache[key] = _local_solve.lower(problem, theta0, LOCAL_METHODS[method], max_steps).compile()
+        m = LOCAL_METHODS[method]
+        if supports_queue(m):
+            fits = batched_fits(problem, m, max_steps, lanes=1, devices=jax.devices()[:1])
+            fits.compile(problem, theta0[None])
+            first = lambda batch: jax.tree.map(lambda x: x[0], batch.outputs[0])
+            cache[key] = lambda p, theta, _m, _s: first(fits(p, jnp.asarray(theta)[None]))
+        else:
+            cache[key] = _local_solve.lower(problem, theta0, m, max_steps).compile()
     return cache[key]
 
 

@@ -23,16 +23,21 @@ from ._chunked import (
     ChunkProgress as ChunkProgress,
     fit_multistart_chunked as fit_multistart_chunked,
 )
-from ._iteration import (
-    default_chunk as default_chunk,
-    queue_lanes as queue_lanes,
-    supports_queue as supports_queue,
-)
+from ._fit import fit as fit
 from ._jacobian import JacobianResiduals as JacobianResiduals
 from ._levenberg_marquardt import (
+    HostFit as HostFit,
     LevenbergMarquardt as LevenbergMarquardt,
-    free_parameters as free_parameters,
+    levenberg_marquardt as levenberg_marquardt,
+    levenberg_marquardt_batch as levenberg_marquardt_batch,
     relative_offset as relative_offset,
+)
+from ._lm_fits import (
+    LMFits as LMFits,
+    default_chunk as default_chunk,
+    free_parameters as free_parameters,
+    queue_lanes as queue_lanes,
+    supports_queue as supports_queue,
 )
 from ._local import (
     LOCAL_METHODS as LOCAL_METHODS,
@@ -42,7 +47,6 @@ from ._local import (
     MinimiserMethod as MinimiserMethod,
     PatternSearch as PatternSearch,
     as_method as as_method,
-    fit as fit,
     fit_statistics as fit_statistics,
     local_methods as local_methods,
     statistics as statistics,

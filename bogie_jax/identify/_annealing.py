@@ -20,8 +20,10 @@ import jax.numpy as jnp
 import jax.random as jr
 import numpy as np
 
+from ..runtime.batch import batch_runner
+from ._lm_fits import queue_lanes
 from ._local import as_method
-from ._multistart import collect, design_starts, run_batch
+from ._multistart import collect, design_starts, local_fits
 from ._problem import as_problem, bounds, param_names, start_theta
 
 
@@ -194,7 +196,8 @@ def fit_hybrid(
     throw: bool = True,
 ):
     """The paper's hybrid: `n_chains` annealing chains from space-filling starts, then a local
-    fit from each chain's best point; chains and fits run as one batch through `batch_runner`.
+    fit from each chain's best point; the chains run as one batch through `batch_runner`, the
+    fits as `fit_multistart`'s (the Levenberg-Marquardt's as a queue, `lanes` "auto").
 
     **Returns:** a `MultistartResult` whose `starts` are the chains' starts, `ends` the local
     fits' ends, and whose evaluation counts include the annealing evaluations.
@@ -206,14 +209,17 @@ def fit_hybrid(
     thetas = design_starts(problem, design_key, n_chains, design)
     keys = jr.split(chain_key, n_chains)
 
-    def member(inputs):
+    def chain(inputs):
         theta0, k = inputs
-        best, _, _, _ = anneal_theta(problem, theta0, k, schedule)
-        out = method.solve(problem, best, max_steps)
-        return out, problem.cost(out.theta)
+        return anneal_theta(problem, theta0, k, schedule)[0]
 
     tic = time.perf_counter()
-    batch = run_batch(member, (thetas, keys), chunk_size=chunk_size, devices=devices)
+    chains = batch_runner(chain, chunk_size=chunk_size, devices=devices)((thetas, keys))
+    lanes = queue_lanes("auto", thetas.shape[1], devices)
+    batch = local_fits(
+        problem, method, np.asarray(chains.outputs), max_steps, lanes=lanes,
+        chunk_size=chunk_size, devices=devices,
+    )  # fmt: skip
     wall = time.perf_counter() - tic
     return collect(
         problem,

@@ -1,14 +1,15 @@
 """Batched local fits that take the objective as a batch input, compiled once per structure.
 
 `fit_multistart` closes over its problem, so every new data set (a new trial, a new chunk's
-caller, a new command run) compiles the vmapped batch again: minutes for a simulation
-objective. Here the objective's arrays are an input of the compiled batch (broadcast to every
-member, or stacked: one data set per member), and `batched_fits` keeps the runners it built
-in a small LRU cache (`RUNNER_CACHE_SIZE` entries) keyed by equality (not `repr`) of the
-objective's static structure, the method, `max_steps`, the devices, the lanes and an optional
-annealing schedule; a key that cannot be hashed is not cached. Members and failure flags are
-as in `fit_multistart`; LM, Gauss-Newton and Dogleg fits run as a queue (`lanes` in flight per
-device, see `bogie_jax.runtime.queued_batch`) unless `lanes=None`.
+caller, a new command run) compiles the batch again: minutes for a simulation objective. Here
+the objective's arrays are an input of the compiled programs (broadcast to every member, or
+stacked: one data set per member), and `batched_fits` keeps the runners it built in a small LRU
+cache (`RUNNER_CACHE_SIZE` entries) keyed by equality (not `repr`) of the objective's static
+structure, the method, `max_steps`, the devices, the lanes and an optional annealing schedule;
+a key that cannot be hashed is not cached. Members and failure flags are as in
+`fit_multistart`; Levenberg-Marquardt fits run as a queue (`lanes` in flight per device, see
+`_lm_fits.LMFits`), other methods every member at once in lock-step; with a schedule, every
+member anneals from its start first (one lock-step batch), then fits.
 """
 
 import collections
@@ -20,7 +21,7 @@ import numpy as np
 
 from ..runtime.batch import batch_runner
 from ._annealing import anneal_theta
-from ._iteration import queue_lanes, queued_fits, supports_queue
+from ._lm_fits import LMFits, queue_lanes, supports_queue
 from ._local import as_method
 from ._problem import as_problem, is_successful
 
@@ -36,33 +37,37 @@ class BatchedFits:
       of one structure stacked along a leading member axis (`stack_objectives`).
     - `thetas` (N, n): starts in unconstrained coordinates; `keys` (N, 2): annealing keys
       (only with a `schedule`: a hybrid member anneals from its start, then fits).
-    - `lanes`: fits in flight per device of a queued batch, `"auto"` (default, see
-      `queue_lanes`) or an int; `None`, or with a `schedule`: every member at once in lock-step
-      (`batch_runner`).
+    - `lanes`: Levenberg-Marquardt fits in flight per device, `"auto"` (default, see
+      `queue_lanes`) or an int; `None`: every member at once.
     """
 
     def __init__(
         self, objective, method="lm", max_steps=100, *, schedule=None, devices=None, lanes="auto"
     ):
         self.static = eqx.partition(objective, eqx.is_array)[1]
-        self.method = as_method(method)
-        method_ = self.method
-        static = self.static
+        self.method, self.schedule = as_method(method), schedule
+        method_, static = self.method, self.static
         lanes = queue_lanes(lanes, len(as_problem(objective).transform.lower), devices)
-        self.queued = lanes is not None and schedule is None and supports_queue(method_)
-        # what the compiled batch closes over, for the program store (`bogie_jax.runtime.batch`)
+        problem_of = lambda dynamic: as_problem(eqx.combine(dynamic, static))
+        # what the compiled programs close over, for the program store (`bogie_jax.runtime.batch`)
         identity = ("bogie_jax.identify.BatchedFits", static, method_, max_steps, lanes, schedule)
-        if self.queued:
-            problem_of = lambda dynamic: as_problem(eqx.combine(dynamic, static))
-            runner = queued_fits(method_, problem_of, max_steps, lanes=lanes, devices=devices)
-            self.runner = runner.with_identity(identity)
+        self.anneal = None
+        if schedule is not None:
+
+            def chain(inputs):
+                theta0, key, dynamic = inputs
+                return anneal_theta(problem_of(dynamic), theta0, key, schedule)[0]
+
+            runner = batch_runner(chain, devices=devices)
+            self.anneal = runner.with_identity(identity + ("anneal",))
+        if supports_queue(method_):
+            fits = LMFits(method_, problem_of, max_steps, lanes=lanes, devices=devices)
+            self.runner = fits.with_identity(identity)
             return
 
         def member(inputs):
-            theta0, key, dynamic = inputs
-            problem = as_problem(eqx.combine(dynamic, static))
-            if schedule is not None:
-                theta0, _, _, _ = anneal_theta(problem, theta0, key, schedule)
+            theta0, dynamic = inputs
+            problem = problem_of(dynamic)
             out = method_.solve(problem, theta0, max_steps)
             cost = problem.cost(out.theta) if out.cost is None else out.cost
             return out, cost
@@ -72,24 +77,28 @@ class BatchedFits:
         ).with_identity(identity)
 
     def _inputs(self, objective, thetas, keys, stacked):
+        """`(thetas, dynamic)` for the fits, and the annealing's `(thetas, keys, dynamic)`."""
         n = thetas.shape[0]
         dynamic = eqx.partition(objective, eqx.is_array)[0]
         if not stacked:
             # on the host: a device broadcast would compile a program per leaf
             dynamic = jax.tree.map(lambda x: np.broadcast_to(x, (n, *np.shape(x))), dynamic)
-        if self.queued:
-            return thetas, dynamic
         if keys is None:
             keys = jnp.zeros((n, 2), jnp.uint32)
-        return thetas, keys, dynamic
+        return (thetas, dynamic), (thetas, keys, dynamic)
 
     def __call__(self, objective, thetas, keys=None, *, stacked=False):
-        inputs = self._inputs(objective, thetas, keys, stacked)
-        return jax.block_until_ready(self.runner(inputs))
+        (thetas, dynamic), chains = self._inputs(objective, thetas, keys, stacked)
+        if self.anneal is not None:
+            thetas = np.asarray(self.anneal(chains).outputs)
+        return jax.block_until_ready(self.runner((thetas, dynamic)))
 
     def compile(self, objective, thetas, keys=None, *, stacked=False) -> None:
         """Compile for these input shapes ahead of time, without running the fits."""
-        self.runner.compile(self._inputs(objective, thetas, keys, stacked))
+        fits, chains = self._inputs(objective, thetas, keys, stacked)
+        if self.anneal is not None:
+            self.anneal.compile(chains)
+        self.runner.compile(fits)
 
 
 def batched_fits(

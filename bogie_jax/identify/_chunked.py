@@ -20,7 +20,7 @@ import numpy as np
 
 from ..runtime.batch import BatchResult
 from ._batched import batched_fits
-from ._iteration import default_chunk
+from ._lm_fits import default_chunk
 from ._local import LocalOutput
 from ._multistart import MultistartResult, collect, design_starts
 from ._problem import as_problem, results_from_names, status_names

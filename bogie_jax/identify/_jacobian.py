@@ -9,11 +9,6 @@ tangents, `vmap` of `jvp`; the residuals are traced once, primal and tangents to
 returns `J @ t`. Linearising then stores `J`, every further product is a matrix product, and
 reverse mode (BFGS) transposes that product: one forward-mode solve per linearisation, for
 every method.
-
-`JacobianResiduals.shape_twin()` has the same linearisation, `t -> J @ t` with `J` an (m, n)
-constant, from zeros: a solver's `init` that only needs the structure of a linearisation (the
-Gauss-Newton family traces one to size its state) gets it without tracing the simulation (about
-10 s per trace on the default scenario).
 """
 
 import equinox as eqx
@@ -50,31 +45,3 @@ class JacobianResiduals(eqx.Module):
     def __call__(self, theta, args=None):
         del args
         return _residuals(theta, self.objective)
-
-    def shape_twin(self) -> "ShapeTwin":
-        """Residuals of the same shape and linearisation structure, all zero (see module)."""
-        return ShapeTwin(self.objective.n_residuals)
-
-
-@eqx.filter_custom_jvp
-def _zeros(theta, m):
-    return jnp.zeros(m, theta.dtype)
-
-
-@_zeros.def_jvp
-def _zeros_jvp(primals, tangents):
-    theta, m = primals
-    t_theta, _ = tangents
-    jac = jnp.zeros((m, theta.size), theta.dtype)
-    return jnp.zeros(m, theta.dtype), jac @ t_theta
-
-
-class ShapeTwin(eqx.Module):
-    """`m` zero residuals whose derivative is the product with an (m, n) matrix of zeros: the
-    linearisation of `JacobianResiduals` (one constant, `dot_general`) at no cost."""
-
-    m: int = eqx.field(static=True)
-
-    def __call__(self, theta, args=None):
-        del args
-        return _zeros(theta, self.m)

@@ -1,139 +1,307 @@
-"""Levenberg-Marquardt that stops when the fit is converged in the statistical sense.
+"""Levenberg-Marquardt on the host for a batch of fits, each evaluation one call of the caller's
+compiled residual-Jacobian program.
 
-optimistix's Gauss-Newton family stops on a Cauchy test: the accepted step and *every*
-residual's change below `atol + rtol |value|`. The residuals of an ODE fit jitter at the
-solver's error level (adaptive steps move with the parameters), so that test does not pass
-before the trust region has shrunk to nothing, and a collapsed region (damping `1 / step_size`
-infinite) makes the step's linear solve fail: a fit that has reached the best minimum ends
-`singular`.
+Every fit minimises 1/2 |r(phi)|^2. `evaluate(points, members) -> (r, J, free)` gives the
+residuals (k, m), their Jacobians (k, m, n) and optionally (k, n) flags of the parameters that
+count as free (`None`: all) at the k points of a batch, in one call of one compiled program:
+`identify` vmaps its residual Jacobian over its fits (`_lm_fits.py`), `monitor` evaluates its
+joint program in reparametrised coordinates. No optimiser loop is compiled beside that program
+(a second simulation program of the same size: measured in docs/history.md). A batch of N fits
+runs `width` at a time; a fit that ends hands its place to the next start (a queue: no fit waits
+for a slower one to end, only each evaluation for its slowest member).
 
-Here the fit also stops when the Bates-Watts **relative offset** is small: with `J = Q R` at the
-current point, residuals `r` (m of them) and `n` parameters,
+**Step.** The damped normal equations
 
-    RO = sqrt(|Q1^T r|^2 / n) / sqrt(|Q2^T r|^2 / (m - n))
+    (J^T J + lambda diag(J^T J)) delta = -J^T r
 
-(Bates & Watts 1981, "A relative offset orthogonality convergence criterion for nonlinear least
-squares", Technometrics 23(2) 179-183; Bates & Watts 1988, *Nonlinear Regression Analysis and
-Its Applications*, 2.2.3). `|Q1^T r| = |J d|` for the Gauss-Newton step `d` still to take, and
-`|Q2^T r|^2 / (m - n)` is the noise variance `s^2` the covariance uses, so `RO sqrt(n)` is the
-length of the remaining step in the metric of the parameters' confidence region: `RO < tol`
-means the estimate would move by less than `tol sqrt(n)` joint standard errors. It is
-scale-free (no parameter or residual units enter). Without noise (`|Q2^T r|` at the ODE
-error level) it only passes at the ODE error's own optimum, so the Cauchy test stays as the
-other way to stop.
+(Marquardt 1963, "An algorithm for least-squares estimation of nonlinear parameters", SIAM J.
+Appl. Math. 11, 431-441), solved as least squares on the stacked system [J; sqrt(lambda) D],
+over the free parameters (the others stay where they are), the step's largest component at
+most `max_step`. The gain ratio rho = (actual decrease) /
+(decrease the linear model predicts) accepts the step when rho > 0 and updates lambda by
+Nielsen's rule: lambda max(1/3, 1 - (2 rho - 1)^3) on acceptance, else lambda nu with nu
+doubling (Madsen, Nielsen & Tingleff, "Methods for non-linear least squares problems", 2004,
+sec. 3.2). A trial point whose residuals or Jacobian are not finite is a rejected step.
 
-`offset_tol` is 1e-2, not Bates and Watts' 1e-3: the ODE error puts a floor under the offset,
-and a tighter tolerance leaves fits that have reached the optimum stepping at that floor until
-the trust region collapses (`singular`). Parameters held on a bound are left out of the offset
-(`LevenbergMarquardt`).
+**Stopping** (`LevenbergMarquardt`; a tolerance of 0 turns its rule off). A fit has converged
+when, at its current point,
 
-**Stalled at the ODE error.** The floor can lie above `offset_tol`: near the optimum the cost
-then changes by more between nearby points (the ODE error) than the Gauss-Newton step promises,
-no step is accepted, and the trust region shrinks until the step's linear solve fails. So the
-fit also stops, successfully, when `stall_steps` (5) steps in a row were rejected at an offset
-below `stall_offset` (0.1): near the optimum of a smooth problem the Gauss-Newton model predicts
-the decrease well and its steps are accepted, so repeated rejections there mean that the
-objective's own error, not the model, stops progress. Such a fit ends within 0.1 sqrt(n)
-standard errors of the optimum, one that passes `offset_tol` within 0.01 sqrt(n).
+- the Bates-Watts **relative offset** is below `offset_tol`: with the Gauss-Newton step d from
+  here over the free parameters (k of them, m residuals),
+
+      RO = sqrt(|J d|^2 / k) / sqrt((|r|^2 - |J d|^2) / (m - k))
+
+  (Bates & Watts 1981, "A relative offset orthogonality convergence criterion for nonlinear
+  least squares", Technometrics 23, 179-183; Bates & Watts 1988, *Nonlinear Regression Analysis
+  and Its Applications*, 2.2.3). `|J d|^2 / (|r|^2 - |J d|^2) (m - k)` compares the decrease
+  still to gain with the noise variance s^2 the residuals estimate, so RO sqrt(k) is the
+  remaining step in joint standard errors of the estimates: RO < 0.01 means the estimate would
+  move by less than 0.01 sqrt(k) of them. It is scale-free. A parameter held on a bound (the
+  evaluation's `free` flag) is left out, as a constrained optimum's first-order conditions
+  leave it out: a logistic transform flattens there and the residual keeps a component along
+  its vanishing column, so the offset over all columns would not fall while the fit crawls
+  towards the bound;
+- the Gauss-Newton step promises a decrease below `cost_tol` (in residuals scaled by the
+  sensors' noise, 1e-4 puts the estimates within about 0.015 standard errors of the optimum);
+- it is **stalled** at its objective's own error: `stall_steps` steps in a row were rejected at
+  an offset below `stall_offset`. Near the optimum of a smooth problem the Gauss-Newton model
+  predicts the decrease well and its steps are accepted; repeated rejections there mean that
+  the objective's error (an ODE solver's adaptive steps move with the parameters) is larger
+  than the decrease the model promises, and the fit ends within `stall_offset` sqrt(k)
+  standard errors of the optimum;
+- the last step's largest component was below `xtol`, an accepted step decreased the cost by
+  at most `ftol` times the cost, or a rejected step promised a decrease below `cost_tol`.
+
+It ends with `max_steps` after that many steps (accepted and rejected) and `failed` where the
+residuals or Jacobian at its start are not finite.
 """
 
+import dataclasses
+import math
 from collections.abc import Callable
 
-import jax.numpy as jnp
-import lineax as lx
-import optimistix as optx
+import equinox as eqx
+import numpy as np
 
-from .._householder import triangularise
-from ._problem import on_bound
+from .._validation import check_number, check_positive_int
 
 
-def relative_offset(jac, residual, free=None):
+DAMPING = 1e-3  # the initial lambda: the damping matrix is lambda diag(J^T J) (Marquardt)
+
+
+class LevenbergMarquardt(eqx.Module):
+    """The Levenberg-Marquardt method and its stopping rules (module docstring), for
+    `bogie_jax.identify`'s fits and `monitor`'s.
+
+    - `offset_tol`, `stall_offset`, `stall_steps`: the relative-offset and stall rules;
+    - `cost_tol`: the Gauss-Newton decrease rule (absolute: residuals scaled by their noise);
+    - `xtol`, `ftol`: the step and relative-decrease rules;
+    - `max_step`: the largest component of a step (`None`: unbounded); in log or logit
+      coordinates 1 is a factor e, and it keeps a Gauss-Newton step from an ill-determined
+      start from throwing a parameter onto the flat end of a logistic map;
+    - `bound_tol`: a parameter within this fraction of its box width of a bound is held there
+      (left out of the offset) by `identify`'s evaluation.
+
+    **Raises:** `ValueError` naming a field outside its range."""
+
+    offset_tol: float = 1e-2
+    cost_tol: float = 0.0
+    xtol: float = 1e-10
+    ftol: float = 1e-12
+    stall_offset: float = 0.1
+    stall_steps: int = 5
+    max_step: float | None = 1.0
+    bound_tol: float = 1e-6
+
+    def __check_init__(self):
+        for name in ("offset_tol", "cost_tol", "xtol", "ftol", "stall_offset"):
+            check_number(name, getattr(self, name), 0.0, math.inf)
+        check_positive_int("stall_steps", self.stall_steps)
+        if self.max_step is not None:
+            check_number("max_step", self.max_step, 0.0, math.inf, open_lo=True)
+        check_number("bound_tol", self.bound_tol, 0.0, 0.5)
+
+
+@dataclasses.dataclass(frozen=True)
+class HostFit:
+    """Outcome of one Levenberg-Marquardt fit: `phi`, residuals `r` and Jacobian `jac` at
+    `phi`, `cost` = 1/2 |r|^2, `steps` (accepted and rejected), `evaluations`, `status`
+    (`converged`, `max_steps` or `failed`), `costs`: the cost after each accepted step."""
+
+    phi: np.ndarray
+    r: np.ndarray
+    jac: np.ndarray
+    cost: float
+    steps: int
+    evaluations: int
+    status: str
+    costs: tuple[float, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class _Member:
+    """One fit between evaluations: the start's `index`, its point `phi` with `r`, `jac`,
+    `cost` there, the `point` to evaluate next (the start, or phi + the damped step `delta`
+    that promises `predicted`), Nielsen's `lam` and `nu`, the counts and the `status`."""
+
+    index: int
+    phi: np.ndarray
+    point: np.ndarray
+    r: np.ndarray | None = None
+    jac: np.ndarray | None = None
+    cost: float = math.inf
+    delta: np.ndarray | None = None
+    predicted: float = 0.0
+    lam: float = DAMPING
+    nu: float = 2.0
+    steps: int = 0
+    rejected: int = 0  # steps rejected in a row
+    evaluations: int = 0
+    costs: tuple[float, ...] = ()
+    status: str = "running"
+
+
+def levenberg_marquardt_batch(
+    evaluate: Callable,
+    starts,
+    method: LevenbergMarquardt = LevenbergMarquardt(),
+    *,
+    max_steps: int = 100,
+    width: int | None = None,
+) -> list[HostFit]:
+    """Fit from each of `starts` (N, n) with `evaluate(points, members) -> (r, J, free)`
+    (module docstring; `points` (width, n), `members` (width,) the starts' indices, a slot
+    without a fit repeating another's point), `width` fits at a time (default all).
+
+    **Returns:** one `HostFit` per start, in order."""
+    starts = np.atleast_2d(np.asarray(starts, dtype=float))
+    n_starts = starts.shape[0]
+    width = n_starts if width is None else max(1, min(int(width), n_starts))
+    check_positive_int("max_steps", max_steps, lo=0)
+    queue = iter(range(width, n_starts))
+    slots = [_Member(i, starts[i], starts[i]) for i in range(width)]
+    fits: list[HostFit | None] = [None] * n_starts
+    while any(s is not None for s in slots):
+        live = next(s for s in slots if s is not None)
+        points = np.stack([(s or live).point for s in slots])
+        members = np.array([(s or live).index for s in slots])
+        r, jac, free = evaluate(points, members)
+        for k, member in enumerate(slots):
+            if member is None:
+                continue
+            free_k = None if free is None else np.asarray(free[k], bool)
+            member = _absorb(member, np.asarray(r[k]), np.asarray(jac[k]), free_k, method)
+            if member.status == "running":
+                member = _plan(member, free_k, method, max_steps)
+            if member.status != "running":
+                fits[member.index] = _host_fit(member)
+                i = next(queue, None)
+                member = None if i is None else _Member(i, starts[i], starts[i])
+            slots[k] = member
+    return fits
+
+
+def levenberg_marquardt(
+    evaluate: Callable,
+    phi0,
+    *,
+    max_steps: int = 30,
+    xtol: float = 1e-8,
+    ftol: float = 1e-12,
+    cost_tol: float = 1e-4,
+    offset_tol: float = 1e-2,
+    max_step: float | None = 1.0,
+) -> HostFit:
+    """One fit from `phi0` with `evaluate(phi) -> (r, J)` (numpy arrays): a batch of one of
+    `levenberg_marquardt_batch` with these tolerances and no stall rule (`monitor`'s fits;
+    `max_step`: a factor e in ln p)."""
+    method = LevenbergMarquardt(
+        offset_tol=offset_tol, cost_tol=cost_tol, xtol=xtol, ftol=ftol, stall_offset=0.0,
+        max_step=max_step,
+    )  # fmt: skip
+
+    def batch(points, members):
+        del members
+        r, jac = evaluate(points[0])
+        return np.asarray(r)[None], np.asarray(jac)[None], None
+
+    return levenberg_marquardt_batch(batch, [phi0], method, max_steps=max_steps)[0]
+
+
+def _finite(r, jac) -> bool:
+    return bool(np.all(np.isfinite(r)) and np.all(np.isfinite(jac)))
+
+
+def _absorb(m: _Member, r, jac, free, method: LevenbergMarquardt) -> _Member:
+    """`m` after the evaluation of its `point`: the start taken (or failed), or the step
+    accepted or rejected (Nielsen's update) and the step rules applied."""
+    count = dict(evaluations=m.evaluations + 1)
+    cost = 0.5 * float(r @ r) if np.all(np.isfinite(r)) else math.inf
+    if m.evaluations == 0:
+        status = "running" if _finite(r, jac) else "failed"
+        costs = (cost,) if status == "running" else ()
+        return dataclasses.replace(m, r=r, jac=jac, cost=cost, costs=costs, status=status, **count)
+    small = float(np.max(np.abs(m.delta))) < method.xtol
+    rho = (m.cost - cost) / m.predicted if m.predicted > 0 else -1.0
+    if _finite(r, jac) and rho > 0:
+        decrease = m.cost - cost
+        lam = m.lam * max(1 / 3, 1 - (2 * rho - 1) ** 3)
+        done = small or decrease <= method.ftol * cost
+        return dataclasses.replace(
+            m, phi=m.point, r=r, jac=jac, cost=cost, costs=m.costs + (cost,), lam=lam, nu=2.0,
+            steps=m.steps + 1, rejected=0, status="converged" if done else "running", **count,
+        )  # fmt: skip
+    done = small or m.predicted < method.cost_tol
+    return dataclasses.replace(
+        m, lam=m.lam * m.nu, nu=2.0 * m.nu, steps=m.steps + 1, rejected=m.rejected + 1,
+        status="converged" if done else "running", **count,
+    )  # fmt: skip
+
+
+def _plan(m: _Member, free, method: LevenbergMarquardt, max_steps: int) -> _Member:
+    """`m` converged by a Gauss-Newton rule (the offset, stall or cost rule) at its point, out of
+    steps, or with its next trial point (the damped step)."""
+    explained = _explained(m.jac, m.r, free)
+    k = m.jac.shape[1] if free is None else int(np.sum(free))
+    offset = _offset(explained, 2.0 * m.cost, m.r.size, k)
+    stalled = m.rejected >= method.stall_steps and offset < method.stall_offset
+    if offset < method.offset_tol or 0.5 * explained < method.cost_tol or stalled:
+        return dataclasses.replace(m, status="converged")
+    if m.steps >= max_steps:
+        return dataclasses.replace(m, status="max_steps")
+    delta, predicted = _damped_step(m.r, m.jac, m.lam, method.max_step, free)
+    return dataclasses.replace(m, point=m.phi + delta, delta=delta, predicted=predicted)
+
+
+def _host_fit(m: _Member) -> HostFit:
+    r = np.full(0, np.nan) if m.r is None else m.r
+    jac = np.full((r.size, m.phi.size), np.nan) if m.jac is None else m.jac
+    return HostFit(m.phi, r, jac, m.cost, m.steps, m.evaluations, m.status, m.costs)
+
+
+def _explained(jac, r, free) -> float:
+    """|J d|^2 = |Q1^T r|^2 for the Gauss-Newton step d over the `free` columns."""
+    columns = jac if free is None else jac[:, free]
+    if columns.shape[1] == 0:
+        return 0.0
+    step = np.linalg.lstsq(columns, -r, rcond=None)[0]
+    return float(np.sum((columns @ step) ** 2))
+
+
+def _offset(explained: float, total: float, m: int, k: int) -> float:
+    """sqrt(explained / k) / sqrt((total - explained) / (m - k)); 0 without a free parameter,
+    inf where no residual is left outside the tangent plane (or m <= k)."""
+    if k == 0:
+        return 0.0
+    rest = total - explained
+    if m <= k or not rest > 0:
+        return math.inf
+    return math.sqrt((explained / k) / (rest / (m - k)))
+
+
+def relative_offset(jac, residual, free=None) -> float:
     """The Bates-Watts relative offset (module docstring) of residuals `residual` (m,) with
-    Jacobian `jac` (m, n), over the columns marked `free` (n,) (default: all); `inf` where no
-    residual is left outside the tangent plane (also for m <= n: no degrees of freedom estimate
-    the noise), 0 where no column is free."""
-    r = jnp.ravel(residual)
-    m, n = jac.shape
-    if m <= n:
-        return jnp.asarray(jnp.inf, r.dtype)
-    if free is None:
-        free = jnp.ones(n, bool)
-    # the free columns first (stable), the others zeroed: the first k reflections span them
-    order = jnp.argsort(~free, stable=True)
-    free = free[order]
-    _, qtr = triangularise(jnp.where(free, jac[:, order], 0.0), r)
-    k = jnp.sum(free)
-    offset2 = jnp.sum(jnp.where(jnp.arange(n) < k, qtr, 0.0) ** 2)
-    orth2 = jnp.sum(r**2) - offset2
-    ratio = (offset2 / jnp.maximum(k, 1)) / jnp.where(orth2 > 0, orth2 / (m - k), 1.0)
-    offset = jnp.where(orth2 > 0, jnp.sqrt(ratio), jnp.inf)
-    return jnp.where(k > 0, offset, 0.0)
+    Jacobian `jac` (m, n), over the columns marked `free` (n,) (default: all)."""
+    jac = np.asarray(jac, dtype=float)
+    r = np.ravel(np.asarray(residual, dtype=float))
+    free = None if free is None else np.asarray(free, bool)
+    k = jac.shape[1] if free is None else int(np.sum(free))
+    return _offset(_explained(jac, r, free), float(r @ r), r.size, k)
 
 
-def free_parameters(y, args, bound_tol):
-    """Which parameters are not held on a bound (`_problem.on_bound` at `y`), with `args` a
-    problem with a `transform` (this package's `LeastSquaresProblem`); without one, all."""
-    transform = getattr(args, "transform", None)
-    if transform is None or not hasattr(transform, "lower"):
-        return jnp.ones(jnp.shape(y), bool)
-    return ~on_bound(transform, transform.to_physical(y), bound_tol)
-
-
-def _quiet(**kwargs):
-    """No output (module-level: equal methods stay equal, and their batch is found again)."""
-
-
-class LevenbergMarquardt(optx.AbstractGaussNewton):
-    """`optimistix.LevenbergMarquardt` that also stops when the relative offset at the current
-    iterate is below `offset_tol`, or below `stall_offset` after `stall_steps` rejected steps in
-    a row (module docstring); otherwise the same solver (damped Newton descent, classical trust
-    region, `rtol`/`atol` Cauchy test). `stall_offset=0` turns the stall rule off.
-
-    Parameters held on a bound (within `bound_tol` box widths, `free_parameters`; the default
-    is `fit`'s on-bound flag) are left out of the offset, as a constrained optimum's first-order
-    conditions leave them out: the transform's logistic flattens there, the residual keeps a
-    component along their (vanishing) columns, and the offset over all columns would never
-    fall while the fit crawls towards the bound."""
-
-    rtol: float
-    atol: float
-    offset_tol: float
-    bound_tol: float
-    stall_offset: float
-    stall_steps: int
-    norm: Callable
-    descent: optx.DampedNewtonDescent
-    search: optx.ClassicalTrustRegion
-    verbose: Callable
-
-    def __init__(
-        self,
-        rtol: float,
-        atol: float,
-        offset_tol: float = 1e-2,
-        linear_solver: lx.AbstractLinearSolver = lx.QR(),
-        bound_tol: float = 1e-6,
-        stall_offset: float = 0.1,
-        stall_steps: int = 5,
-    ):
-        self.rtol = rtol
-        self.atol = atol
-        self.offset_tol = offset_tol
-        self.bound_tol = bound_tol
-        self.stall_offset = stall_offset
-        self.stall_steps = stall_steps
-        self.norm = optx.max_norm
-        self.descent = optx.DampedNewtonDescent(linear_solver=linear_solver)
-        self.search = optx.ClassicalTrustRegion()
-        self.verbose = _quiet
-
-    def terminate(self, fn, y, args, options, state, tags):
-        cauchy, result = super().terminate(fn, y, args, options, state, tags)
-        # `state.f_info` holds the residuals and linearisation at `y` once a step was taken
-        free = free_parameters(y, args, self.bound_tol)
-        offset = relative_offset(state.f_info.jac.as_matrix(), state.f_info.residual, free)
-        stalled = (state.num_steps_since_acceptance >= self.stall_steps) & (
-            offset < self.stall_offset
-        )
-        converged = ~state.first_step & ((offset < self.offset_tol) | stalled)
-        return cauchy | converged, result
+def _damped_step(r, jac, lam, max_step, free=None):
+    """The damped step (least squares on the stacked system) in the `free` columns (default
+    all; the others stay), its largest component at most `max_step` (`None`: unbounded), and
+    the decrease its linear model predicts."""
+    if free is not None and not free.all():
+        step, predicted = _damped_step(r, jac[:, free], lam, max_step)
+        delta = np.zeros(jac.shape[1])
+        delta[free] = step
+        return delta, predicted
+    d = np.sqrt(np.maximum(np.diag(jac.T @ jac), 1e-300))
+    aug = np.vstack([jac, np.sqrt(lam) * np.diag(d)])
+    delta = np.linalg.lstsq(aug, np.concatenate([-r, np.zeros(d.size)]), rcond=None)[0]
+    biggest = float(np.max(np.abs(delta), initial=0.0))
+    if max_step is not None and biggest > max_step:
+        delta *= max_step / biggest
+    return delta, 0.5 * float(delta @ (lam * d**2 * delta - jac.T @ r))

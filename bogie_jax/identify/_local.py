@@ -1,14 +1,15 @@
-"""Local fits: optimistix least squares / minimisers and a compass (pattern) search.
+"""Local methods, their raw output and the fits' statistics.
 
-Methods are strategy objects (`AbstractLocalMethod`); strings are accepted only through the
-`LOCAL_METHODS` name table. `fit` returns a `FitResult` with Gauss-Newton statistics:
+Methods are strategy objects: the Levenberg-Marquardt (`LevenbergMarquardt`, run on the host
+over a compiled residual-Jacobian program: `_lm_fits.py`), and compiled methods
+(`AbstractLocalMethod`: optimistix least squares and minimisers, a compass search); strings are
+accepted only through the `LOCAL_METHODS` name table. A fit's statistics are Gauss-Newton's:
 covariance `s^2 (J^T J)^+` with `s^2 = 2 J / (m - n)` (`bogie_jax.cost.covariance_from_jacobian`,
 rank deficiency reported), mapped to physical units by the derivative of the transform (delta
 method). Solver status is `optimistix.RESULTS`.
 """
 
 import abc
-import time
 
 import equinox as eqx
 import jax
@@ -20,12 +21,9 @@ from .._householder import HouseholderQR
 from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
 from ._levenberg_marquardt import LevenbergMarquardt
 from ._problem import (
-    as_problem,
     is_successful,
     on_bound,
-    param_names,
     problem_residuals,
-    start_theta,
     status_name,
 )
 from ._student_t import t_quantile
@@ -36,8 +34,8 @@ class LocalOutput(eqx.Module):
     status, an `optimistix.RESULTS` (batched along the member axis in a batch; on the host read
     it with `status_names`, store it by name and read it back with `results_from_names`).
     `jacobian`: the residual Jacobian `dr/dtheta` (m, n) at `theta`, and `cost` = 0.5 r^T r
-    there, where the fit's own state holds them (the Gauss-Newton family: `LeastSquaresMethod`
-    and the queued `_iteration.least_squares_member`), else `None`."""
+    there, where the fit ends with them (the Levenberg-Marquardt, `_lm_fits.lm_outputs`, and
+    the Gauss-Newton family, `LeastSquaresMethod`), else `None`."""
 
     theta: jax.Array
     result: optx.RESULTS
@@ -49,7 +47,8 @@ class LocalOutput(eqx.Module):
 
 
 class AbstractLocalMethod(eqx.Module):
-    """A local method: `solve(problem, theta0, max_steps) -> LocalOutput`, jit/vmap-safe."""
+    """A compiled local method: `solve(problem, theta0, max_steps) -> LocalOutput`,
+    jit/vmap-safe."""
 
     @abc.abstractmethod
     def solve(self, problem, theta0, max_steps: int) -> LocalOutput:
@@ -57,21 +56,18 @@ class AbstractLocalMethod(eqx.Module):
 
 
 class LeastSquaresMethod(AbstractLocalMethod):
-    """An optimistix least-squares solver (LM, Gauss-Newton, Dogleg) on the residuals.
+    """An optimistix least-squares solver (Gauss-Newton, Dogleg) on the residuals.
 
     Each step linearises the residuals once (`jax.linearize`): one residual evaluation and one
     forward-mode Jacobian per step. The output carries the residual Jacobian and the cost at
     the end from the solver's state (`state.f_info`: the residuals and linearisation at the
-    iterate the last step returned, as `_iteration.least_squares_member` reads them), so the
-    statistics evaluate nothing again: one copy of the simulation and its tangents fewer in a
-    compiled fit.
+    iterate the last step returned), so the statistics evaluate nothing again: one copy of the
+    simulation and its tangents fewer in a compiled fit.
     """
 
     solver: optx.AbstractLeastSquaresSolver
 
     def solve(self, problem, theta0, max_steps):
-        # the problem itself is the solver's `args` (as in the queued fits, `_iteration`): the
-        # LM's stopping rule reads its transform (`_levenberg_marquardt.free_parameters`)
         sol = optx.least_squares(
             problem_residuals, self.solver, theta0, problem, max_steps=max_steps, throw=False
         )
@@ -177,15 +173,14 @@ class PatternSearch(AbstractLocalMethod):
 def local_methods(
     rtol: float = 1e-10, atol: float = 1e-10, offset_tol: float = 1e-2, stall_offset: float = 0.1
 ) -> dict:
-    """The name -> method table used at the CLI/IO boundary; least-squares steps by
-    `HouseholderQR` (a batched LAPACK QR can deadlock a sharded multistart). `rtol`, `atol`:
-    optimistix's Cauchy test; the LM also stops on the relative offset (`offset_tol`,
-    `stall_offset`: `_levenberg_marquardt.py`; both 0 leave optimistix's test alone)."""
+    """The name -> method table used at the CLI/IO boundary. `rtol`, `atol`: optimistix's
+    Cauchy test, `atol` also the LM's step rule (`xtol`); the LM's statistical rules
+    `offset_tol` and `stall_offset` (`_levenberg_marquardt.py`; 0 turns a rule off). The
+    optimistix least-squares steps by `HouseholderQR` (a batched LAPACK QR can deadlock a
+    sharded multistart)."""
     qr = HouseholderQR()
     return {
-        "lm": LeastSquaresMethod(
-            LevenbergMarquardt(rtol, atol, offset_tol, linear_solver=qr, stall_offset=stall_offset)
-        ),
+        "lm": LevenbergMarquardt(offset_tol=offset_tol, xtol=atol, stall_offset=stall_offset),
         "gauss-newton": LeastSquaresMethod(optx.GaussNewton(rtol, atol, linear_solver=qr)),
         "dogleg": LeastSquaresMethod(optx.Dogleg(rtol, atol, linear_solver=qr)),
         "bfgs": MinimiserMethod(optx.BFGS(rtol, atol)),
@@ -197,8 +192,9 @@ def local_methods(
 LOCAL_METHODS = local_methods()
 
 
-def as_method(method) -> AbstractLocalMethod:
-    """A method object from a name, an optimistix solver or an `AbstractLocalMethod`."""
+def as_method(method) -> "AbstractLocalMethod | LevenbergMarquardt":
+    """A method object from a name, a `LevenbergMarquardt`, an optimistix solver or an
+    `AbstractLocalMethod`."""
     if isinstance(method, str):
         try:
             return LOCAL_METHODS[method.lower()]
@@ -207,14 +203,15 @@ def as_method(method) -> AbstractLocalMethod:
                 f"unknown `method` {method!r}; choose one of {sorted(LOCAL_METHODS)} or pass a "
                 "method object"
             ) from None
-    if isinstance(method, AbstractLocalMethod):
+    if isinstance(method, AbstractLocalMethod | LevenbergMarquardt):
         return method
     if isinstance(method, optx.AbstractMinimiser):
         return MinimiserMethod(method)
     if isinstance(method, optx.AbstractLeastSquaresSolver):
         return LeastSquaresMethod(method)
     raise TypeError(
-        f"`method` must be a name, an optimistix solver or a method object, got {method!r}"
+        f"`method` must be a name, a LevenbergMarquardt, an optimistix solver or a method "
+        f"object, got {method!r}"
     )
 
 
@@ -303,64 +300,3 @@ def statistics(problem, theta, bound_tol: float):
     and their Jacobian by `bogie_jax.cost.residual_jacobian`, then `fit_statistics`."""
     r, jac = residual_jacobian(problem, theta, problem.args)
     return fit_statistics(problem.transform, theta, 0.5 * jnp.sum(r**2), jac, bound_tol)
-
-
-@eqx.filter_jit
-def _fit_jit(problem, theta0, method, max_steps, bound_tol):
-    """The fit and its statistics: from the Jacobian and cost the fit ended with where its
-    output holds them, else from one more evaluation (`extra` = 1 in the counts)."""
-    out = method.solve(problem, theta0, max_steps)
-    if out.jacobian is None or out.cost is None:
-        return out, statistics(problem, out.theta, bound_tol), 1
-    tr = problem.transform
-    return out, fit_statistics(tr, out.theta, out.cost, out.jacobian, bound_tol), 0
-
-
-def fit(
-    problem,
-    start=None,
-    *,
-    method="lm",
-    max_steps: int = 256,
-    throw: bool = True,
-    bound_tol: float = 1e-6,
-) -> FitResult:
-    """Fit the parameters of `problem` by a local method.
-
-    **Arguments:**
-    - `problem`: a `LeastSquaresProblem` or an `Objective` (see `as_problem`).
-    - `start`: start in physical units, strictly inside the bounds (default: nominal).
-    - `method`: a name from `LOCAL_METHODS` (default `"lm"`), an optimistix least-squares
-      solver or minimiser, or an `AbstractLocalMethod`.
-    - `max_steps`: solver step limit.
-    - `throw`: raise `RuntimeError` if the solver did not succeed (else read `status`).
-    - `bound_tol`: an estimate within this fraction of the box width of a bound is flagged.
-
-    **Returns:** a `FitResult`.
-
-    **Raises:** `ValueError` for an empty selection, a bad start or an unknown method name.
-    """
-    problem = as_problem(problem)
-    method = as_method(method)
-    theta0 = start_theta(problem.transform, start)
-    tic = time.perf_counter()
-    # `bound_tol` as an array: a traced input, so another value does not compile again
-    tol = jnp.asarray(bound_tol, dtype=float)
-    out, stats, extra = _fit_jit(problem, theta0, method, max_steps, tol)
-    out, stats = jax.block_until_ready((out, stats))
-    wall = time.perf_counter() - tic
-    result = FitResult(
-        names=param_names(problem.transform, theta0.size),
-        theta=out.theta,
-        num_steps=out.num_steps,
-        num_fn_evals=out.num_fn_evals + extra,
-        num_jac_evals=out.num_jac_evals + extra,
-        status=out.result,
-        wall_time=np.asarray(wall),
-        **stats,
-    )
-    if throw and not result.success:
-        raise RuntimeError(
-            f"fit did not succeed: {result.status_name} after {int(out.num_steps)} steps"
-        )
-    return result

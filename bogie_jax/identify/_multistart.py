@@ -1,12 +1,12 @@
 """Multistart: space-filling starts inside the bounds, all local fits as one sharded batch.
 
-LM, Gauss-Newton and Dogleg fits run as a queue by default (`runtime.queued_batch`: a few fits
-in flight per device, vmapped where a device holds several, see `queue_lanes`; a lane whose fit
-has ended takes the next start), so no device waits for its slowest fit; `lanes=None`, and the
-other methods, run every start at once in lock-step through `runtime.batch.batch_runner` (in
-chunks). Both spread the starts over the devices and run optimistix's own iteration, so they
-agree up to rounding (vmaps of different widths can round differently). A failed start
-(non-finite output or unsuccessful solver status) is reported, never raised.
+Levenberg-Marquardt fits run as a queue by default (`_lm_fits.LMFits`: a few fits in flight
+per device, vmapped where a device holds several, see `queue_lanes`; a fit that has ended hands
+its lane to the next start), so no lane waits for the slowest fit; `lanes=None` runs every
+start at once. The other methods run every start at once in lock-step through
+`runtime.batch.batch_runner` (in chunks). A fit takes the same steps whatever the lanes (up to
+rounding: vmaps of different widths can round differently). A failed start (non-finite output
+or unsuccessful solver status) is reported, never raised.
 Distinct minima are clustered on the host in box-normalised coordinates.
 """
 
@@ -21,7 +21,7 @@ import numpy as np
 
 from ..qmc import sobol_sequence
 from ..runtime.batch import batch_runner
-from ._iteration import queue_lanes, queued_fits, supports_queue
+from ._lm_fits import LMFits, queue_lanes, supports_queue
 from ._local import FitResult, as_method, fit_statistics, statistics
 from ._problem import (
     as_problem,
@@ -157,6 +157,19 @@ def local_member(problem, method, max_steps):
     return member
 
 
+def local_fits(problem, method, thetas, max_steps, *, lanes, chunk_size=None, devices=None):
+    """`BatchResult` of `(LocalOutput, cost)`: the fits of `problem` from each of `thetas`,
+    the Levenberg-Marquardt's as a queue with `lanes` fits in flight per device (`None`: every
+    start at once, or `chunk_size` per device), any other method's every start at once in
+    lock-step (`run_batch`, in chunks of `chunk_size`)."""
+    if supports_queue(method):
+        lanes = chunk_size if lanes is None else lanes
+        run = LMFits(method, lambda _: problem, max_steps, lanes=lanes, devices=devices)
+        return run((thetas, None))
+    member = local_member(problem, method, max_steps)
+    return run_batch(member, thetas, chunk_size=chunk_size, devices=devices)
+
+
 # the best fit's statistics: from the Jacobian its fit ended with (a small program), or, for
 # methods whose state holds none, from a new residual-Jacobian evaluation
 _FIT_STATISTICS = eqx.filter_jit(fit_statistics)
@@ -266,10 +279,11 @@ def fit_multistart(
     - `n_starts`, `design` (`"lhs"`, `"sobol"` or an `AbstractDesign`), or explicit physical
       `starts` of shape `(N, n)` (then `n_starts`/`design` are ignored).
     - `method`, `max_steps`: as in `fit`; solves use `throw=False`.
-    - `lanes`: LM, Gauss-Newton and Dogleg fits in flight per device of a queued batch: `"auto"`
-      (default, see `queue_lanes`) or an int; `None`: every start at once in lock-step.
-    - `chunk_size`: members vmapped together in a lock-step batch (not used by the queue, whose
-      `lanes` bound the memory); `devices`: devices to spread the starts over (default all).
+    - `lanes`: Levenberg-Marquardt fits in flight per device: `"auto"` (default, see
+      `queue_lanes`) or an int; `None`: every start at once (`chunk_size` per device if given).
+    - `chunk_size`: members vmapped together in a lock-step batch of another method, or the
+      LM's fits in flight per device with `lanes=None`; `devices`: devices to spread the
+      starts over (default all).
     - `cluster_tol`: max-norm distance, as a fraction of each box width, within one minimum.
     - `throw`: raise if every start failed.
 
@@ -283,16 +297,9 @@ def fit_multistart(
         thetas = jnp.stack([start_theta(problem.transform, s) for s in np.atleast_2d(starts)])
     lanes = queue_lanes(lanes, thetas.shape[1], devices)
     tic = time.perf_counter()
-    if lanes is not None and supports_queue(method):
-        run = queued_fits(method, lambda _: problem, max_steps, lanes=lanes, devices=devices)
-        batch = jax.block_until_ready(run((thetas, None)))
-    else:
-        batch = run_batch(
-            local_member(problem, method, max_steps),
-            thetas,
-            chunk_size=chunk_size,
-            devices=devices,
-        )
+    batch = local_fits(
+        problem, method, thetas, max_steps, lanes=lanes, chunk_size=chunk_size, devices=devices
+    )
     wall = time.perf_counter() - tic
     return collect(
         problem, thetas, batch, wall, cluster_tol=cluster_tol, bound_tol=bound_tol, throw=throw

@@ -16,8 +16,9 @@ intervals then do not hold. `fit_noise_model` fits as `monitor` does:
    transform's derivative (delta method); the 95 % intervals with Student's t of m - n - b
    degrees of freedom (b: the bias parameters).
 
-Each fit is identify's Levenberg-Marquardt (`LevenbergMarquardt`); the weights are an array of
-the residual function, so every refit runs the same compiled program.
+Each fit is identify's Levenberg-Marquardt (`LevenbergMarquardt`, `_lm_fits.fit_one`); the
+weights are an array of the residual function, so every refit runs the same compiled
+residual-Jacobian program.
 """
 
 import dataclasses
@@ -26,7 +27,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from ..cost import (
     AbstractCovariance,
@@ -37,15 +37,10 @@ from ..cost import (
     channel_variances,
     channel_weights,
 )
+from ._levenberg_marquardt import LevenbergMarquardt
+from ._lm_fits import STATUS, fit_one
 from ._local import as_method
-from ._problem import (
-    LeastSquaresProblem,
-    as_problem,
-    param_names,
-    problem_residuals,
-    start_theta,
-    status_name,
-)
+from ._problem import LeastSquaresProblem, as_problem, param_names, start_theta
 from ._student_t import t_quantile
 
 
@@ -69,17 +64,6 @@ class ChannelResiduals(eqx.Module):
             count = jnp.maximum(jnp.sum(self.present, axis=0), 1)
             r = r - jnp.sum(jnp.where(self.present, r, 0.0), axis=0) / count
         return jnp.ravel(jnp.where(self.present, r, 0.0))
-
-
-@eqx.filter_jit
-def _least_squares(problem, theta0, solver, max_steps):
-    """The fit, with the residuals and Jacobian its last step left (no evaluation more)."""
-    sol = optx.least_squares(
-        problem_residuals, solver, theta0, problem, max_steps=max_steps, throw=False
-    )
-    info = sol.state.f_info
-    r, jac = jnp.ravel(info.residual), info.jac.as_matrix()
-    return sol.value, sol.result, sol.stats["num_steps"], r, jac
 
 
 @dataclasses.dataclass(frozen=True)
@@ -138,12 +122,16 @@ def fit_noise_model(
     """Fit `objective` (one run's, `bogie_jax.cost.make_objective`, or a `LeastSquaresProblem`
     with its sample-major residuals' `present` (n_times, n_channels) mask) from `start`
     (physical units, default nominal) with the noise model and covariance rule of the module
-    docstring; `method`: a least-squares method of `LOCAL_METHODS` (default `"lm"`)."""
+    docstring; `method`: `"lm"` or a `LevenbergMarquardt`.
+
+    **Raises:** `ValueError` for another method."""
     base = as_problem(objective)
     theta = start_theta(base.transform, start)
     present = _present(objective, present)
     runs = RunChannels.of([slice(0, present.size)], present.shape[1], present.reshape(-1))
-    solver = as_method(method).solver
+    lm = as_method(method)
+    if not isinstance(lm, LevenbergMarquardt):
+        raise ValueError(f'`method` = {method!r} must be "lm" or a LevenbergMarquardt')
     w = np.ones(present.shape[1])
     fits, reference, s2 = [], None, None
     for k in range(REWEIGHTS + 1):
@@ -151,11 +139,9 @@ def fit_noise_model(
             base.residuals, jnp.asarray(w), jnp.asarray(present), remove_bias
         )
         problem = LeastSquaresProblem(weighted, base.transform, base.args)
-        value, result, steps, r, jac = jax.block_until_ready(
-            _least_squares(problem, jnp.asarray(theta), solver, max_steps)
-        )
-        theta, r, jac = np.asarray(value), np.asarray(r), np.asarray(jac)
-        fits.append((theta, result, int(steps), r, jac))
+        lm_fit = fit_one(problem, np.asarray(theta), lm, max_steps)
+        theta, r, jac = lm_fit.phi, lm_fit.r, lm_fit.jac
+        fits.append((theta, STATUS[lm_fit.status], lm_fit.steps, r, jac))
         s2 = channel_variances(r, jac, runs, remove_bias=remove_bias, weights=w[None, :])
         if reference is None:
             dof = runs.n_present - (runs.n_bias if remove_bias else 0) - theta.size
@@ -184,7 +170,7 @@ def _statistics(base, fits, runs, s2, w, model) -> NoiseModelFit:
     return NoiseModelFit(
         names=param_names(base.transform, theta.size), estimates=estimates, std_errors=se,
         ci95=np.stack([estimates - half, estimates + half], axis=-1),
-        covariance=np.asarray(cov.covariance), theta=theta, status=status_name(result),
+        covariance=np.asarray(cov.covariance), theta=theta, status=result,
         steps=sum(f[2] for f in fits), noise_variance=s2_all, sigma2=float(sigma2),
         dof=int(dof), channel_noise=np.sqrt(s2[0]), weights=w, reweights=len(fits) - 1,
         noise=noise.name, covariance_rule=rule.name, bandwidth=bandwidth,

@@ -74,7 +74,7 @@ class LeastSquaresProblem(eqx.Module):
 
 
 def problem_residuals(theta, problem: LeastSquaresProblem):
-    """The solvers' `fn(y, args)`, `args` the problem itself (its transform for the LM)."""
+    """optimistix's `fn(y, args)`, `args` the problem itself."""
     return problem.residuals(theta, problem.args)
 
 

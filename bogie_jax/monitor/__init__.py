@@ -21,7 +21,9 @@ from ..cost import (  # the noise model and covariance rules, shared with identi
     channel_weights as channel_weights,
     leverage as leverage,
 )
-from ..identify import (  # the one t distribution, re-exported for the verdict rules
+from ..identify import (  # the one t distribution and the one Levenberg-Marquardt
+    HostFit as HostFit,
+    levenberg_marquardt as levenberg_marquardt,
     satterthwaite_dof as satterthwaite_dof,
     t_quantile as t_quantile,
     two_sided_p_value as two_sided_p_value,
@@ -65,7 +67,6 @@ from ._horizon import (
     horizon_stages as horizon_stages,
     window_rows as window_rows,
 )
-from ._host_fit import HostFit as HostFit, levenberg_marquardt as levenberg_marquardt
 from ._imperfections import (
     ERROR_SEED_OFFSET as ERROR_SEED_OFFSET,
     channel_rms as channel_rms,

@@ -10,10 +10,10 @@ import dataclasses
 import numpy as np
 
 from ..cost import channel_variances, channel_weights
+from ..identify import HostFit, levenberg_marquardt
 from ._checks import failed_runs
 from ._elements import classify_elements, group_weights
 from ._horizon import horizon_stages, window_rows
-from ._host_fit import HostFit, levenberg_marquardt
 from ._program import FitSpace, JointProgram
 from ._verdict import decision_z
 

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from ._host_fit import HostFit, levenberg_marquardt
+from ..identify import HostFit, levenberg_marquardt
 
 
 @dataclasses.dataclass(frozen=True)

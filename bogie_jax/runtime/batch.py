@@ -4,8 +4,8 @@
 pytree batch: `vmap` over chunks of `chunk_size` members, `lax.map` over the chunks (bounded
 memory), and the members of each chunk spread over the devices by `jax.sharding` (on a CPU,
 expose several host devices with `XLA_FLAGS=--xla_force_host_platform_device_count=N` before
-importing JAX). `per_device` runs each device's block on its own (`jax.shard_map`) for the
-queued runner's least-squares fits.
+importing JAX). `per_device` runs each device's block on its own (`jax.shard_map`): the queued
+runner's members, and `per_device_runner`'s (a batch of evaluations, one per fit in flight).
 A member whose output is non-finite, or flagged by `failure_fn`, is reported in
 `BatchResult.failed`; nothing raises because of one member (use `throw=False` in solves).
 """
@@ -196,5 +196,49 @@ def batch_runner(
             return x.reshape(total, *x.shape[3:])[:n]
 
         return BatchResult(outputs=jax.tree.map(unchunk, out), failed=unchunk(failed))
+
+    return BatchRunner(sharded, prepare, finish)
+
+
+def _block(fn: Callable):
+    """`fn` over a block of members: `vmap`, except for a block of one member, which runs
+    unbatched (a smaller program: a batched `cond` evaluates both branches)."""
+
+    def run(block):
+        if _batch_size(block) == 1:
+            return jax.tree.map(lambda a: a[None], fn(jax.tree.map(lambda a: a[0], block)))
+        return jax.vmap(fn)(block)
+
+    return run
+
+
+def per_device_runner(
+    fn: Callable, *, devices=None, failure_fn: Callable | None = None
+) -> BatchRunner:
+    """Compile `fn` (one member -> pytree) into a `BatchRunner` whose members are split over
+    the devices in contiguous blocks, each device's block run on its own (`per_device`: no
+    device waits for another's loops) and vmapped (`_block`). For a batch whose width is the
+    work in flight, e.g. one residual-Jacobian evaluation of every fit of a
+    `bogie_jax.identify` queue per iteration; `fn` must not call lineax's own solvers (see
+    `per_device`). `devices`, `failure_fn`: as in `batch_runner`."""
+    devices = list(devices) if devices is not None else jax.devices()
+    n_dev = len(devices)
+    block = _block(fn)
+
+    def flagged(items):
+        out = block(items)
+        return out, jax.vmap(lambda o: member_failed(o, failure_fn))(out)
+
+    sharded, sharding = per_device(flagged, devices, PartitionSpec("batch"))
+
+    def prepare(batch):
+        n = _batch_size(batch)
+        padded = _pad(batch, math.ceil(n / n_dev) * n_dev)
+        return jax.device_put(padded, sharding), n
+
+    def finish(outputs, n) -> BatchResult:
+        out, failed = outputs
+        head = lambda x: x[:n]
+        return BatchResult(outputs=jax.tree.map(head, out), failed=head(failed))
 
     return BatchRunner(sharded, prepare, finish)

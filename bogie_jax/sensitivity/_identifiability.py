@@ -27,12 +27,10 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 from jaxtyping import Array, Bool, Float
 
 from ..cost import Covariance, covariance_from_jacobian, residual_jacobian
-from ..identify import LeastSquaresMethod, LeastSquaresProblem, as_problem, is_successful
-from ..runtime.batch import batch_runner
+from ..identify import LeastSquaresProblem, LevenbergMarquardt, LMFits, as_problem
 
 
 CHI2_1_95 = 3.841458820694124  # chi2 quantile, 1 degree of freedom, 0.95
@@ -414,9 +412,11 @@ def profile_likelihood(
     Each profile point fixes one parameter on a grid of `n_points` values (`n_points - 1` evenly
     spaced values and the estimate) between its bounds
     (`lower`, `upper` physical `(n,)`, default the transform's; a log-scale parameter without
-    finite bounds uses [estimate / 2, 2 estimate]) and re-fits the others with
-    Levenberg-Marquardt (`rtol`, `atol`, `max_steps`), warm-started at the estimate. All
-    `len(params) * n_points` fits run as one batch (`bogie_jax.runtime.batch.batch_runner`).
+    finite bounds uses [estimate / 2, 2 estimate]) and re-fits the others with identify's
+    Levenberg-Marquardt (`bogie_jax.identify.LevenbergMarquardt`: `atol` its step rule, `rtol`
+    its relative-decrease rule, no statistical rule; `max_steps`), warm-started at the
+    estimate. The `len(params) * n_points` fits run as one batch (`bogie_jax.identify.LMFits`,
+    `chunk_size` fits in flight per device, default all).
 
     **Raises:** `ValueError` for an unknown parameter, bounds with lower >= upper or an estimate
     outside them, or `n_points < 3`, before any fit.
@@ -472,22 +472,20 @@ def profile_likelihood(
     for row, i in enumerate(idx):
         fixed[row, :, i] = True
     fixed = fixed.reshape(-1, n)
-    members = _ProfileMember(fixed=jnp.asarray(fixed), theta_fixed=jnp.asarray(theta_grid[fixed]))
-    method = LeastSquaresMethod(optx.LevenbergMarquardt(rtol=rtol, atol=atol))
+    members = _ProfileMember(fixed=fixed, theta_fixed=theta_grid[fixed])
+    method = LevenbergMarquardt(offset_tol=0.0, stall_offset=0.0, xtol=atol, ftol=rtol)
 
-    def refit(member: _ProfileMember):
+    def held(member: _ProfileMember):
         embed = lambda x: jnp.where(member.fixed, member.theta_fixed, x)
         residuals = lambda x, args: lsq.residuals(embed(x), args)
-        sub = LeastSquaresProblem(residuals, transform, lsq.args)
-        out = method.solve(sub, theta_hat, max_steps)
-        theta = embed(out.theta)
-        cost = lsq.cost(theta)
-        return cost, transform.to_physical(theta), out.result
+        return LeastSquaresProblem(residuals, transform, lsq.args)
 
-    run = batch_runner(refit, chunk_size=chunk_size, devices=devices)
-    result = run(members)
-    cost, phys, code = result.outputs
-    ok = np.asarray(is_successful(code)) & ~np.asarray(result.failed)
+    fits = LMFits(method, held, max_steps, lanes=chunk_size, devices=devices)
+    result = fits((np.broadcast_to(np.asarray(theta_hat), fixed.shape), members))
+    out, cost = result.outputs
+    theta = np.where(fixed, members.theta_fixed[:, None], np.asarray(out.theta))
+    phys = np.asarray(jax.vmap(transform.to_physical)(jnp.asarray(theta)))
+    ok = ~np.asarray(result.failed)
     cost = np.where(ok, np.asarray(cost), np.nan).reshape(len(idx), n_points)
     fit_cost = float(eqx.filter_jit(lsq.cost)(theta_hat))
     cost_min = float(np.nanmin(np.concatenate([[fit_cost], cost.ravel()])))
