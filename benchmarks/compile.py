@@ -310,7 +310,6 @@ PART_RULES = (
     ("bogie_jax/_householder", "linear solve"),
     ("bogie_jax/identify/_jacobian", "Jacobian rule"),
     ("bogie_jax/identify/", "optimiser loop"),
-    ("bogie_jax/queued_batch", "optimiser loop"),
     ("bogie_jax/batch", "optimiser loop"),
     ("bogie_jax/cost/", "objective"),
     ("bogie_jax/gradients", "objective"),

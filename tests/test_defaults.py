@@ -128,7 +128,7 @@ def measured(nominal, short_track, four_sensors):
     return m, truth
 
 
-@pytest.mark.heavy  # an LM fit on the adaptive default solver: 2.3 min; README, "Tests"
+@pytest.mark.heavy  # an LM fit on the adaptive default solver: about 30 s; README, "Tests"
 def test_fit_of_an_objective_made_with_default_arguments_converges(measured, nominal, short_track):
     measurement, truth = measured
     assert measurement.track == TrackReference(spectrum="erri-low", seed=0, length=35.0)

@@ -35,7 +35,7 @@ NAMES = (
 )
 
 
-# heavy (README, "Tests"): its fit compiles for about 2 min of the suite's CPU; by default
+# heavy (README, "Tests"): its fit compiles for about 45 s of the suite's CPU; by default
 # tests/test_monitor.py finds the same defect on its side through `monitor`'s per-element fit
 pytestmark = pytest.mark.heavy
 

@@ -273,8 +273,9 @@ def test_cli_bad_data_file(tmp_path):
         _parse(["--data", str(bad), "--scenario", "default"])
 
 
-# heavy (README, "Tests"): `fit`'s own program, about 60 s more; by default the queued runner's
-# sharding is checked against one device on an analytic member (`test_queued_batch.py`)
+# heavy (README, "Tests"): `fit`'s own program, about 60 s more; by default the per-device
+# runner's sharding is checked against one device on an analytic member
+# (`test_per_device_runner.py`, and `test_identify.py`'s multistart on 4 devices against one)
 @pytest.mark.slow
 @pytest.mark.heavy
 def test_sharded_multistart_equals_one_device(clean, multistart4):
@@ -283,30 +284,18 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
     cost minutes on a small CPU): the same status, cost and on-bound flags for every start, and
     the same estimates where the fit is well determined (not on a bound).
 
-    Why the two differ at all: same solver and starts, but two compiled programs (the batch
-    steps each fit as a lane of a queue inside `shard_map`, `fit` runs optimistix's
-    loop). XLA vectorises and fuses them differently, and the adaptive ODE steps turn
-    those last-bit differences into different step sequences, so the objective itself differs
-    at the solver's error level: at one theta the residuals of an unbatched and a vmapped
-    program (the lanes were vmapped until one lane per CPU device was stepped without `vmap`)
-    differ by up to 1.6e-4 (noise-weighted; max |r| 1.7e-4 near the truth), the costs
-    by 4e-4 at J = 2055 (measured at the ends of this batch). Each path stops where its own
-    cost stops falling by more than that: near the truth (J ~ 1e-8) the estimates agree to
-    ~3e-7. Start 0 ends at a bound instead (primary.kz on its upper bound, yaw_dampers.c 3e-5
-    of its band below its own): in logistic coordinates that corner lies at infinity, the cost
-    keeps falling towards it with a gradient ~ (1 - u), and the LM stops on its step test (not
-    the step limit: 400 steps stop at the same points) once its trial steps, rejected where the
-    predicted decrease is below that numerical level, have shrunk to nothing, which happens at
-    different points of the valley: yaw_dampers.c 599988.5 (43 steps)
-    vs 599994.9 N s/m (52 steps), 1.1e-5 apart, costs 6e-7 apart. A tighter LM tolerance does
-    not make that point well defined (there is no stationary point, and the two objectives
-    differ): with rtol = atol = 1e-12 instead of 1e-10, `fit` stopped at the same four points
-    (same step counts) and the batch at 599997.9 N s/m (57 steps), 5e-6 on the other side. So
-    the estimates of a start on a bound are not compared; its status, cost and the bounds it
-    ends at are, within `NEAR_BOUND` (1e-4) of the box width: `statistics`' own flag (1e-6)
-    falls inside that spread. Measured 2026-11-27, one lane per CPU device (the batch unbatched
-    inside its queue): the batch ended at 599999.67 N s/m (1 - u = 8e-7, flagged) and `fit` at
-    599999.20 N s/m (2.0e-6, not flagged)."""
+    Why the two differ at all: the same LM and starts, but two compiled evaluation programs
+    (the batch's runs one fit per device inside `shard_map`, `fit`'s is a plain `jit`). XLA
+    fuses them differently, and the adaptive ODE steps turn those last-bit differences into
+    different step sequences, so the objective itself differs at the solver's error level: at
+    one theta the residuals of an unbatched and a vmapped program differ by up to 1.6e-4
+    (noise-weighted; max |r| 1.7e-4 near the truth), the costs by 4e-4 at J = 2055. Each path
+    stops where its own cost stops falling by more than that: near the truth (J ~ 1e-8) the
+    estimates agree to ~3e-7. A start that ends on a bound has no stationary point there (in
+    logistic coordinates the corner lies at infinity, and the cost keeps falling towards it),
+    so each path stops at its own point of the valley: the estimates of such a start are not
+    compared; its status, cost and the bounds it ends at are, within `NEAR_BOUND` (1e-4) of the
+    box width (`statistics`' own flag, 1e-6, falls inside that spread)."""
     lower = np.asarray(clean.objective.selection.lower)
     upper = np.asarray(clean.objective.selection.upper)
     near = lambda x: np.minimum(x - lower, upper - x) / (upper - lower) < NEAR_BOUND
@@ -325,5 +314,5 @@ def test_sharded_multistart_equals_one_device(clean, multistart4):
         if not near(end).any():
             np.testing.assert_allclose(single_end, end, rtol=1e-5)
             compared += 1
-    # the check cannot pass on bounds alone (with this key: starts 1-3 interior, 0 on a bound)
+    # the check cannot pass on bounds alone (with this key at least 3 of the 4 ends interior)
     assert compared >= N_STARTS - 1

@@ -4,15 +4,16 @@ identity, another argument shape or an identity that does not pickle gets its ow
 none; the store is off by default and where equinox's errors are host callbacks; a store that
 cannot be written still runs the export.
 
-Oracle: the queued runner's own outputs without the store (Newton's square root, as in
-`test_queued_batch.py`)."""
+Oracle: the per-device runner's own outputs without the store (Newton's square root, as in
+`test_per_device_runner.py`)."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import bogie_jax.runtime.program_store as store
-from bogie_jax.runtime.queued_batch import IterativeMember, queued_runner
+from bogie_jax.runtime.batch import per_device_runner
 
 
 ARGS = jnp.asarray([4.0, 1e12, 2.0, 1e-6, 9.0, 3.0e7, 0.5, 1e3])
@@ -20,28 +21,26 @@ TRACES = []
 
 
 def _member(scale):
-    """Newton's iteration for sqrt(scale * a); each trace of `step` is counted in TRACES."""
-
-    def init(a):
-        return scale * a, scale * a + 1.0, jnp.asarray(0)
+    """Newton's iteration for sqrt(scale * a); each trace of its step is counted in TRACES."""
 
     def step(carry):
         TRACES.append(1)
         a, x, k = carry
         return a, 0.5 * (x + a / x), k + 1
 
-    def done(carry):
+    def running(carry):
         a, x, k = carry
-        return (jnp.abs(x * x - a) <= 1e-12 * a) | (k >= 60)
+        return (jnp.abs(x * x - a) > 1e-12 * a) & (k < 60)
 
-    def output(carry):
-        return carry[1], carry[2]
+    def member(a):
+        _, x, k = jax.lax.while_loop(running, step, (scale * a, scale * a + 1.0, 0))
+        return x, k
 
-    return IterativeMember(init=init, step=step, done=done, output=output)
+    return member
 
 
 def _runner(scale, identity):
-    return queued_runner(_member(scale), lanes=2).with_identity(identity)
+    return per_device_runner(_member(scale)).with_identity(identity)
 
 
 @pytest.fixture

@@ -1,8 +1,8 @@
 """How the package's programs run: solve settings, batch runners, the persistent caches.
 
 - `solve_settings`: `SolveSettings`, the one module of diffrax solve options.
-- `batch`: `batch_runner`, vmap in chunks sharded over devices, failed members reported.
-- `queued_batch`: `queued_runner`, iterative members (local fits) as a queue per device.
+- `batch`: `batch_runner`, vmap in chunks sharded over devices, failed members reported;
+  `per_device_runner`, each device's block of members run on its own.
 - `program_store`: batch programs kept across processes (`jax.export`).
 - `compilation_cache`: `use_compilation_cache`, JAX's persistent cache and the store beside it.
 

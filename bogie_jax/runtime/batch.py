@@ -4,8 +4,8 @@
 pytree batch: `vmap` over chunks of `chunk_size` members, `lax.map` over the chunks (bounded
 memory), and the members of each chunk spread over the devices by `jax.sharding` (on a CPU,
 expose several host devices with `XLA_FLAGS=--xla_force_host_platform_device_count=N` before
-importing JAX). `per_device` runs each device's block on its own (`jax.shard_map`): the queued
-runner's members, and `per_device_runner`'s (a batch of evaluations, one per fit in flight).
+importing JAX). `per_device_runner` runs each device's block on its own (`per_device`,
+`jax.shard_map`): a batch whose width is the work in flight, e.g. one evaluation per fit.
 A member whose output is non-finite, or flagged by `failure_fn`, is reported in
 `BatchResult.failed`; nothing raises because of one member (use `throw=False` in solves).
 """
@@ -74,7 +74,7 @@ def per_device(fn: Callable, devices, spec: PartitionSpec):
     `check_vma=False` because `fn` uses no collectives and optimistix's Jacobian products
     do not type-check under the varying-manual-axes check (jax 0.10.2). `fn` must not call
     lineax's own solvers, which reject right-hand sides inside `shard_map` (see `batch_runner`);
-    the `HouseholderQR` of the library's LM, Gauss-Newton and Dogleg works.
+    the library's `HouseholderQR` (the static equilibrium's solves) works.
     """
     mesh = jax.sharding.Mesh(np.array(list(devices)), ("batch",))
     sharding = jax.sharding.NamedSharding(mesh, spec)
@@ -84,7 +84,7 @@ def per_device(fn: Callable, devices, spec: PartitionSpec):
 
 class BatchRunner:
     """A compiled batch: `run(batch) -> BatchResult` (what `batch_runner` and
-    `bogie_jax.runtime.queued_batch.queued_runner` return).
+    `per_device_runner` return).
 
     - `run(batch)`: run the batch (compiled on the first call for its signature: structure,
       shapes and dtypes of the batch's leaves).
