@@ -81,6 +81,8 @@ Run (from the repository root):
     python benchmarks/detection.py --report                    # tables from the records only
     python benchmarks/detection.py --duration 8 --track-error 0.3 --out two_8s_runs
                         # the records' 0.3 mm error in the intervals, its bias removed
+    python benchmarks/detection.py --imperfection worn-wheels --duration 2 --nuisance none \
+        --out worn-wheels_no_nuisance         # without the contact's model-form nuisance
 Writes results/detection/<out>.json (records + aggregates + environment) and
 results/detection/<out>.md; <out> is `default_imperfections` for the default imperfections,
 else the imperfections' names joined by `-`.
@@ -193,6 +195,7 @@ def config_of(args) -> dict:
         "false_alarm_rate": args.false_alarm_rate,
         # only when given: records written before the option existed keep their configuration
         **({"track_error_mm": float(args.track_error)} if args.track_error else {}),
+        **({"nuisance": list(args.nuisance)} if args.nuisance is not None else {}),
         **_mismatch.config(args.imperfections),
     }
 
@@ -262,7 +265,11 @@ def case_inputs(cfg: dict, index: int) -> dict:
     # the RMS the records' error is said to have: --track-error's and the track modes' together
     track_error = math.hypot(1e-3 * cfg.get("track_error_mm", 0.0), told)
     mismatch.update(entries, **({"track_error_told_m": track_error} if told else {}))
-    options = MonitorOptions(false_alarm_rate=cfg["false_alarm_rate"], track_error=track_error)
+    nuisance = cfg.get("nuisance")  # absent: the monitor's default
+    options = MonitorOptions(
+        false_alarm_rate=cfg["false_alarm_rate"], track_error=track_error,
+        nuisance=None if nuisance is None else tuple(nuisance),
+    )  # fmt: skip
     return dict(
         case=case, nominal=nominal, truth=truth, scenario=bogie["scenario"],
         changed=bogie["changed"], label=bogie["label"], mismatch=mismatch, runs=runs,
@@ -756,11 +763,17 @@ def main(argv=None):
     p.add_argument("--max-speed-error", type=float, default=0.01, help="relative bound")
     p.add_argument("--bias", type=float, default=0.05, help="bias bound / channel RMS")
     p.add_argument("--max-wear", type=float, default=0.3, help="cone slope factor 1 +- this")
+    p.add_argument(
+        "--nuisance", default=None, help="monitor's nuisance parameters: comma-separated names, "
+        "or `none` (default: the monitor's, the contact's model-form parameters)",
+    )  # fmt: skip
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
     p.add_argument("--report", action="store_true", help="only aggregate the records")
     args = p.parse_args(argv)
     args.imperfections = parse_imperfections(args.imperfection)
+    if args.nuisance is not None:
+        args.nuisance = () if args.nuisance == "none" else tuple(args.nuisance.split(","))
     args.speed_range = tuple(float(x) for x in args.speed_range.split(","))
     args.noise_range = tuple(float(x) for x in args.noise_range.split(","))
     default_mode = args.imperfections == ALIASES["default"]

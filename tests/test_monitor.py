@@ -29,6 +29,7 @@ from bogie_jax.measure import (
     default_sensor_layout,
 )
 from bogie_jax.monitor import (
+    DEFAULT_CANDIDATES,
     DEFECT_SCENARIOS,
     FAILED_FLOOR,
     MISFIT_LIMIT,
@@ -41,6 +42,7 @@ from bogie_jax.monitor import (
     as_defect_scenario,
     classify_elements,
     decision_z,
+    default_nuisance,
     group_value,
     group_weights,
     levenberg_marquardt,
@@ -50,6 +52,7 @@ from bogie_jax.monitor import (
     with_speed_error,
     worn_wheels,
 )
+from bogie_jax.monitor._nuisance import check_nuisance
 from bogie_jax.params import element_names, get_parameter, manchester_benchmark, parameter_specs
 from bogie_jax.simulation import SolveSettings
 from bogie_jax.track import TrackReference
@@ -549,19 +552,34 @@ def test_monitor_continues_over_the_horizon_where_one_fit_misses_the_speed(healt
 @pytest.mark.heavy
 def test_monitor_fits_the_cone_slope_of_worn_wheels(nominal):
     """Item 4f: a healthy bogie on worn wheels (cone slope 1.3 times nominal, `worn_wheels`),
-    noise-free runs of the module's shapes on exact tracks. The nuisance parameter
-    `contact.cone_slope` is fitted (oracle: the known factor, to 1 %), never judged, and no
-    suspension element is called degraded. Heavy: one more column compiles a second
-    residual-Jacobian program (about 2.5 min on the shared 2 cores; passed 2026-11-23)."""
+    noise-free runs of the module's shapes on exact tracks, default options. The model-form
+    nuisance parameters are fitted (oracles: the known cone slope factor, to 1 %, and the
+    creep factor at its true nominal value, to 1 %), never judged, and no suspension element is
+    called degraded."""
     worn = worn_wheels(nominal, 1.3)
     data = scenario_measurements("healthy", RUNS, params=worn)
-    result = monitor(data, options=MonitorOptions(nuisance=("contact.cone_slope",)))
+    result = monitor(data)
     print(result.table())
     slope = result.fit.nuisance["contact.cone_slope"]
     assert slope["estimate"] == pytest.approx(1.3 * slope["nominal"], rel=1e-2), slope
-    assert all(v.name != "contact.cone_slope" for v in result.verdicts)
+    creep = result.fit.nuisance["contact.creep_factor"]
+    assert creep["estimate"] == pytest.approx(creep["nominal"], rel=1e-2), creep
+    assert all(not v.name.startswith("contact.") for v in result.verdicts)
     assert result.alarms == ()
     _non_alarms_are_healthy(result)
+
+
+def test_default_nuisance_is_the_contacts_model_form():
+    """`MonitorOptions().nuisance` is `None`: the contact geometry's model-form parameters,
+    less any candidate; `()` fits none. Nothing is compiled."""
+    cone, profile = manchester_benchmark(), manchester_benchmark(contact="s1002-uic60")
+    assert MonitorOptions().nuisance is None
+    both = ("contact.cone_slope", "contact.creep_factor")
+    assert check_nuisance(cone, None, DEFAULT_CANDIDATES) == both == default_nuisance(cone)
+    assert check_nuisance(profile, None, DEFAULT_CANDIDATES) == ("contact.creep_factor",)
+    assert check_nuisance(cone, (), DEFAULT_CANDIDATES) == ()
+    judged = (*DEFAULT_CANDIDATES, "contact.creep_factor")
+    assert check_nuisance(cone, None, judged) == ("contact.cone_slope",)
 
 
 def _blank(nominal, channels=None, speed=30.0):
@@ -788,7 +806,8 @@ def test_demo_verdicts_json_schema(demo):
         if row["estimate"] is not None:
             ev = row["evidence"]
             assert 0 < ev["std_error_track_record"] < row["std_error"], row["name"]
-            total = np.hypot(ev["std_error_residuals"], ev["std_error_track_record"])
+            parts = ("residuals", "track_record", "model_discrepancy")
+            total = np.sqrt(sum(ev[f"std_error_{part}"] ** 2 for part in parts))
             assert row["std_error"] == pytest.approx(total, rel=1e-9), row["name"]
             # the records' bias, where removed, is the one in the evidence (under 10 % in ln p)
             shift = np.log(ev["estimate_fitted"] / row["estimate"])

@@ -80,6 +80,7 @@ from ._imperfections import (
 from ._monitor import monitor as monitor
 from ._nuisance import (
     DEFAULT_NUISANCE as DEFAULT_NUISANCE,
+    default_nuisance as default_nuisance,
     MAX_OFFSET as MAX_OFFSET,
     OFFSET_SCALE as OFFSET_SCALE,
     SPEED_SCALE as SPEED_SCALE,

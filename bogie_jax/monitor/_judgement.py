@@ -5,7 +5,8 @@ coordinate and the fit's summary.
   by simulation-extrapolation from the well-determined element coordinates (`estimate_of`).
 - The covariance of all fitted coordinates (nuisance included, so the intervals carry the
   nuisance's uncertainty) by the options' covariance rule with the noise model's sigma^2, in the
-  coordinates p / p_nominal (`bogie_jax.cost.relative_to_nominal`), plus the records' term.
+  coordinates p / p_nominal (`bogie_jax.cost.relative_to_nominal`), plus the records' term and,
+  with the Gauss-Newton rule, the model discrepancy's (`_discrepancy.py`).
 - A verdict per coordinate by `judge` (`_verdict.py`) at the decision z of the false-alarm rate
   over the judged coordinates (Bonferroni); an element estimated outside its band is tested by
   the profile likelihood ratio (`_profile.py`); the 95 % intervals use the Welch-Satterthwaite
@@ -18,9 +19,10 @@ import math
 
 import numpy as np
 
-from ..cost import relative_to_nominal, with_model_error
+from ..cost import GaussNewtonCovariance, relative_to_nominal, with_model_error
 from ..identify import satterthwaite_dof
 from ..params import resolve_parameter
+from ._discrepancy import model_discrepancy
 from ._elements import nominal_values
 from ._host_fit import HostFit
 from ._profile import ProfilePoint, profile_point
@@ -81,11 +83,12 @@ def estimate_of(space: FitSpace, fit: HostFit, track_effect, n_log: int) -> Esti
 @dataclasses.dataclass(frozen=True)
 class Statistics:
     """The estimates' statistics: residual variance `s2` and the noise model's `sigma2`, the
-    degrees of freedom `dofs` of the residual and the track terms, the reported `values` of the
-    judged coordinates and `nuisance_values` of the nuisance parameters, the standard errors
-    (`se` of every fitted coordinate in reported units, `se_gn` Gauss-Newton, `se_residual`
-    without and `se_track` of the records' term alone, `track_var` its variances), the
-    covariance rule's `bandwidth`, the Jacobian's `rank` and `condition_number`."""
+    degrees of freedom `dofs` of the residual, the track and the discrepancy terms, the reported
+    `values` of the judged coordinates and `nuisance_values` of the nuisance parameters, the
+    standard errors (`se` of every fitted coordinate in reported units, `se_gn` Gauss-Newton,
+    `se_residual` of the covariance rule alone, `se_track` of the records' term alone and
+    `track_var` its variances, `model_var` the discrepancy term's variances), the covariance
+    rule's `bandwidth`, the Jacobian's `rank` and `condition_number`."""
 
     s2: float
     sigma2: float
@@ -97,6 +100,7 @@ class Statistics:
     se_residual: np.ndarray
     se_track: np.ndarray
     track_var: np.ndarray
+    model_var: np.ndarray
     bandwidth: float
     rank: int
     condition_number: float
@@ -109,6 +113,18 @@ def _track_covariance(estimate: Estimate, scale) -> np.ndarray:
         return np.zeros((scale.size, scale.size))
     removed = np.where(estimate.corrected, effect.bias_variance, 0.0)
     return np.outer(scale, scale) * (effect.covariance + np.diag(removed))
+
+
+def _discrepancy_covariance(space: FitSpace, estimate: Estimate, scale):
+    """(the model discrepancy's covariance in reported units, its degrees of freedom): with the
+    Gauss-Newton rule only (`_discrepancy.py`); zeros and inf with the sandwich."""
+    p, fit, effect = space.program.problem, estimate.fit, estimate.track_effect
+    if not isinstance(p.options.covariance_rule, GaussNewtonCovariance):
+        return np.zeros((scale.size, scale.size)), math.inf
+    misfits = None if effect is None or not effect.draws else effect.misfits
+    rates = [m.sample_rate for m in p.measurements]
+    d = model_discrepancy(fit.r, fit.jac, space.runs(), rates, misfits)
+    return np.outer(scale, scale) * d.covariance, d.dof
 
 
 def statistics(space: FitSpace, coords, estimate: Estimate) -> Statistics:
@@ -124,19 +140,22 @@ def statistics(space: FitSpace, coords, estimate: Estimate) -> Statistics:
     layout = space.program.nuisance_layout()
     scale = layout.scale(np.concatenate([values, extra]), estimate.x)
     track_p = _track_covariance(estimate, scale)
+    model_p, model_dof = _discrepancy_covariance(space, estimate, scale)
     jac, scale = relative_to_nominal(fit.jac, scale, estimate.phi[:n_log])
     rule = p.options.covariance_rule
     cov, gn, bandwidth = rule.estimate(jac, fit.r, runs, n_bias, sigma2, scale)
     se_residual = np.asarray(cov.std_errors)
-    if estimate.track_effect is not None:
-        cov = with_model_error(cov, track_p)
+    if estimate.track_effect is not None or model_p.any():
+        cov = with_model_error(cov, track_p + model_p)
     effect = estimate.track_effect
-    dofs = (p.options.noise.residual_dof(dof), max(effect.draws, 1) if effect else math.inf)
+    dofs = (
+        p.options.noise.residual_dof(dof), max(effect.draws, 1) if effect else math.inf, model_dof
+    )
     track_var = np.diag(track_p)
     return Statistics(
         s2, sigma2, dofs, values, extra, np.asarray(cov.std_errors), np.asarray(gn.std_errors),
-        se_residual, np.sqrt(np.maximum(track_var, 0.0)), track_var, bandwidth, int(gn.rank),
-        float(gn.condition_number),
+        se_residual, np.sqrt(np.maximum(track_var, 0.0)), track_var, np.diag(model_p), bandwidth,
+        int(gn.rank), float(gn.condition_number),
     )  # fmt: skip
 
 
@@ -183,7 +202,8 @@ def judge_coordinates(tests: ProfileTests, statuses, stats: Statistics, member_w
     for j, c in enumerate(coords):
         err, err_gn = stats.se[j], stats.se_gn[j]
         ratio = float(err / err_gn) ** 2 if np.isfinite(err) and err_gn > 0 else 1.0
-        dof = satterthwaite_dof((stats.se_residual[j] ** 2, stats.track_var[j]), stats.dofs)
+        variances = (stats.se_residual[j] ** 2, stats.track_var[j], stats.model_var[j])
+        dof = satterthwaite_dof(variances, stats.dofs)
         v = judge(
             c.name, stats.values[j], err, c.band, z=z, identifiable=fit.status != "failed",
             profile=tests.test(j, ratio), dof=dof,
@@ -197,6 +217,7 @@ def judge_coordinates(tests: ProfileTests, statuses, stats: Statistics, member_w
             std_error_gauss_newton=float(err_gn),
             std_error_track_record=float(stats.se_track[j]),
             std_error_residuals=float(stats.se_residual[j]),
+            std_error_model_discrepancy=float(np.sqrt(max(stats.model_var[j], 0.0))),
             estimate_fitted=float(c.nominal * np.exp(fit.phi[j])),  # before the bias
             track_record_bias=float(effect.bias[j]) if effect is not None else 0.0,  # in ln p
             track_record_bias_se=(  # its Monte Carlo standard error, in ln p

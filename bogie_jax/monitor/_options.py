@@ -18,7 +18,6 @@ from ..runtime.solve_settings import SolveSettings
 from ._checks import RUN_MISFIT
 from ._elements import MAX_CORRELATION, RESOLUTION
 from ._horizon import HORIZON_START
-from ._nuisance import DEFAULT_NUISANCE
 from ._verdict import check_false_alarm_rate
 
 
@@ -44,7 +43,7 @@ class MonitorOptions:
     - `remove_bias`: a constant sensor bias per run and channel is eliminated
       (`bogie_jax.cost.RunChannels`); `run_corrections`: each run's position on its record and
       speed factor are fitted, and `nuisance`: parameter names fitted but never judged
-      (`_nuisance.py`).
+      (`None`: the contact's model-form parameters, `_nuisance.default_nuisance`; `()`: none).
     - `resolution`, `max_correlation` in (0, 1]: the identifiability rule (`_elements.py`).
     - `max_steps`: Levenberg-Marquardt steps per fit; `horizon_start` [s] (> 0, or `None`): a
       longer record is fitted over growing spans (`_horizon.py`); `run_misfit` (> 0): the rule
@@ -63,7 +62,7 @@ class MonitorOptions:
     covariance: AbstractCovariance | None = None
     remove_bias: bool = True
     run_corrections: bool = True
-    nuisance: tuple[str, ...] = DEFAULT_NUISANCE
+    nuisance: tuple[str, ...] | None = None
     resolution: float = RESOLUTION
     max_correlation: float = MAX_CORRELATION
     max_steps: int = 30
@@ -78,7 +77,7 @@ class MonitorOptions:
     def __post_init__(self):
         set_ = lambda name, value: object.__setattr__(self, name, value)
         set_("candidates", _names(self.candidates))
-        set_("nuisance", _names(self.nuisance) or ())
+        set_("nuisance", _names(self.nuisance))
         check_false_alarm_rate(self.false_alarm_rate)
         _check_kind("noise", self.noise, AbstractNoiseModel, NOISE_MODELS)
         if self.covariance is not None:
