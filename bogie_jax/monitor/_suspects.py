@@ -17,8 +17,10 @@ excess low-band power (`_goodness.py`) its one Gauss-Newton step removes by half
 extra evaluation compiles a second residual-Jacobian program (all omitted elements at once), and
 runs only where the data are not explained, so data the model explains pay nothing.
 
-**Withheld alarms.** An element is not called `degraded` or `failed` on a fit that does not
-explain the data unless its test still holds with the top suspects free: the significant
+**Withheld alarms.** On a fit that does not explain the data, every judged estimate's standard
+error is first scaled for the misfit in the rows that inform it (`_misfit_scale.py`), and an
+element is not called `degraded` or `failed` unless its test still holds with that error and
+the top suspects free: the significant
 suspects (p below `alpha` / the number screened; at most `MAX_FREE`, the top one where none is
 significant) are added to the fit as extra columns, linearised at the fit (one Gauss-Newton
 step: the estimate moves by that step, its standard error by the ratio of the Gauss-Newton
@@ -38,6 +40,7 @@ import scipy.stats
 from ..params import element_names, get_parameter
 from ._elements import tied_group
 from ._goodness import group_excess
+from ._misfit_scale import misfit_scales, scaled
 from ._program import JointProgram
 from ._verdict import Verdict, interval_outside
 
@@ -189,8 +192,11 @@ def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
     `columns` free (module docstring); otherwise kept, with the check in its evidence. The test
     that made the alarm (`decisive_test`) is repeated at the freed estimate and standard error:
     a Wald statistic exactly, a profile statistic scaled by the distance to the limit in ln p
-    and by the standard errors' ratio."""
-    step, ratio = freed_step(jac, r, columns, index)
+    and by the standard errors' ratios (freed; misfit-scaled, `_misfit_scale.scaled`).
+    `columns` `None`: no suspect is freed."""
+    step, ratio = (0.0, 1.0) if columns is None else freed_step(jac, r, columns, index)
+    before = verdict.evidence.get("std_error_before_misfit_scale", verdict.std_error)
+    misfit = verdict.std_error / before if before > 0 else 1.0
     with np.errstate(over="ignore"):
         estimate = float(verdict.estimate * np.exp(step))
     se = verdict.std_error * math.sqrt(ratio)
@@ -199,7 +205,7 @@ def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
         again = -math.inf
     elif by_profile:
         distance = math.log(verdict.estimate / limit)
-        again = statistic * math.log(estimate / limit) / distance / math.sqrt(ratio)
+        again = statistic * math.log(estimate / limit) / distance / math.sqrt(ratio) / misfit
     else:
         again = (estimate - limit) / se * math.copysign(1.0, verdict.estimate - limit)
     holds = bool(again > verdict.evidence["z"])
@@ -210,7 +216,8 @@ def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
         return dataclasses.replace(verdict, evidence=evidence)
     evidence.update(
         not_explained=True, withheld=verdict.verdict, reason="the fit does not explain the data "
-        f"and, with the suspects free, the data do not put the element beyond {limit:.4g} "
+        "and, with its standard error scaled for the misfit and the suspects free, the data do "
+        f"not put the element beyond {limit:.4g} "
         f"(was {verdict.verdict}: {verdict.evidence.get('reason', '')})",
     )  # fmt: skip
     evidence.pop("watch", None)
@@ -221,17 +228,19 @@ def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
 
 
 def screen(space, fit, n_coords: int, verdicts, goodness, s2: float, say):
-    """The suspects of a fit that does not explain the data, and the verdicts with the alarms
-    that do not hold with them free withheld (module docstring): `(goodness, verdicts)`."""
+    """The suspects of a fit that does not explain the data, and the verdicts with their
+    standard errors scaled for the misfit and the alarms that do not hold with them free
+    withheld (module docstring): `(goodness, verdicts)`."""
     say("the fit does not explain the data: screening the elements not judged")
     suspects, columns = find_suspects(space, fit, goodness, s2)
     goodness = dataclasses.replace(goodness, suspects=suspects)
-    if not suspects:
-        return goodness, list(verdicts)
-    p = space.program.problem
-    n = len(omitted_elements(p.params, p.candidates, p.nuisance))
-    free = columns[:, freed(suspects, p.options.false_alarm_rate, n)]
-    out = list(verdicts)
+    rho = misfit_scales(space, fit, goodness, n_coords)
+    out = [scaled(v, x) for v, x in zip(verdicts[:n_coords], rho)] + list(verdicts[n_coords:])
+    free = None
+    if suspects:
+        p = space.program.problem
+        n = len(omitted_elements(p.params, p.candidates, p.nuisance))
+        free = columns[:, freed(suspects, p.options.false_alarm_rate, n)]
     for j, v in enumerate(out[:n_coords]):
         if v.verdict in ("degraded", "failed"):
             out[j] = recheck_alarm(v, j, fit.jac, fit.r, free)
