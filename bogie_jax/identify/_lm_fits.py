@@ -21,6 +21,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.sharding import PartitionSpec
 
 from ..cost import residual_jacobian
 from ..runtime.batch import BatchResult, per_device_runner
@@ -118,14 +119,6 @@ class LMFits:
             return n_starts
         return min(self.lanes * len(self.devices), n_starts)
 
-    def _evaluate(self, data):
-        def evaluate(points, members):
-            rows = jax.tree.map(lambda x: np.asarray(x)[members], data)
-            r, jac, free = self.runner((points, rows)).outputs
-            return np.asarray(r), np.asarray(jac), np.asarray(free)
-
-        return evaluate
-
     def compile(self, inputs) -> None:
         """Compile the evaluation for `inputs`' number of starts, without fitting."""
         thetas, data = inputs
@@ -137,10 +130,33 @@ class LMFits:
         thetas, data = inputs
         thetas = np.asarray(thetas, dtype=float)
         fits = levenberg_marquardt_batch(
-            self._evaluate(data), thetas, self.method, max_steps=self.max_steps,
+            _Evaluation(self.runner, data, self.devices), thetas, self.method,
+            max_steps=self.max_steps,
             width=self.width(len(thetas)),
         )  # fmt: skip
         return lm_outputs(fits)
+
+
+class _Evaluation:
+    """`evaluate(points, members) -> (r, J, free)` of `LMFits` on `data`: the members' rows of
+    `data` are placed on the devices once per set of members in flight (it changes only when a
+    fit ends), not at every iteration, where they split evenly over the devices (else the
+    runner pads and places them)."""
+
+    def __init__(self, runner, data, devices):
+        self.runner, self.data, self.n_devices = runner, data, len(devices)
+        mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
+        self.sharding = jax.sharding.NamedSharding(mesh, PartitionSpec("batch"))
+        self.members, self.rows = None, None
+
+    def __call__(self, points, members):
+        if self.members is None or not np.array_equal(members, self.members):
+            rows = jax.tree.map(lambda x: np.asarray(x)[members], self.data)
+            if len(members) % self.n_devices == 0:
+                rows = jax.device_put(rows, self.sharding)
+            self.members, self.rows = members, rows
+        r, jac, free = self.runner((points, self.rows)).outputs
+        return np.asarray(r), np.asarray(jac), np.asarray(free)
 
 
 def queue_lanes(lanes, n_params: int, devices=None) -> int | None:

@@ -219,8 +219,10 @@ def per_device_runner(
     the devices in contiguous blocks, each device's block run on its own (`per_device`: no
     device waits for another's loops) and vmapped (`_block`). For a batch whose width is the
     work in flight, e.g. one residual-Jacobian evaluation of every fit of a
-    `bogie_jax.identify` queue per iteration; `fn` must not call lineax's own solvers (see
-    `per_device`). `devices`, `failure_fn`: as in `batch_runner`."""
+    `bogie_jax.identify` queue per iteration: a leaf of the batch already placed as this runner
+    places it (padded to a multiple of the devices, sharded over them) is not placed again.
+    `fn` must not call lineax's own solvers (see `per_device`). `devices`, `failure_fn`: as in
+    `batch_runner`."""
     devices = list(devices) if devices is not None else jax.devices()
     n_dev = len(devices)
     block = _block(fn)
@@ -233,8 +235,14 @@ def per_device_runner(
 
     def prepare(batch):
         n = _batch_size(batch)
-        padded = _pad(batch, math.ceil(n / n_dev) * n_dev)
-        return jax.device_put(padded, sharding), n
+        total = math.ceil(n / n_dev) * n_dev
+
+        def place(x):  # a leaf already laid out for this runner stays where it is
+            if isinstance(x, jax.Array) and x.shape[0] == total and x.sharding == sharding:
+                return x
+            return jax.device_put(_pad(x, total), sharding)
+
+        return jax.tree.map(place, batch), n
 
     def finish(outputs, n) -> BatchResult:
         out, failed = outputs
