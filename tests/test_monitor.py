@@ -40,6 +40,7 @@ from bogie_jax.monitor import (
     SandwichCovariance,
     ToleranceBand,
     as_defect_scenario,
+    check_nuisance,
     classify_elements,
     decision_z,
     default_nuisance,
@@ -52,7 +53,6 @@ from bogie_jax.monitor import (
     with_speed_error,
     worn_wheels,
 )
-from bogie_jax.monitor._nuisance import check_nuisance
 from bogie_jax.params import element_names, get_parameter, manchester_benchmark, parameter_specs
 from bogie_jax.simulation import SolveSettings
 from bogie_jax.track import TrackReference

@@ -7,7 +7,7 @@ import pytest
 import scipy.signal
 
 from bogie_jax.cost import RunChannels
-from bogie_jax.monitor._discrepancy import model_discrepancy
+from bogie_jax.monitor import model_discrepancy
 
 
 RATE, N, C, P = 100.0, 400, 3, 4  # [Hz], samples per run, channels, parameters

@@ -9,9 +9,15 @@ import numpy as np
 import pytest
 
 from bogie_jax.cost import RunChannels
-from bogie_jax.monitor import ToleranceBand, decision_z, judge
-from bogie_jax.monitor._goodness import GoodnessOfFit, Misfit
-from bogie_jax.monitor._misfit_scale import misfit_scales, scaled
+from bogie_jax.monitor import (
+    GoodnessOfFit,
+    Misfit,
+    ToleranceBand,
+    decision_z,
+    judge,
+    misfit_scales,
+)
+from bogie_jax.monitor import scaled_for_misfit as scaled
 
 
 N, CHANNELS = 300, ("a_y", "b_y", "c_z")

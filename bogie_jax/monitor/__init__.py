@@ -77,9 +77,12 @@ from ._imperfections import (
     with_speed_error as with_speed_error,
     worn_wheels as worn_wheels,
 )
+from ._discrepancy import Discrepancy as Discrepancy, model_discrepancy as model_discrepancy
+from ._misfit_scale import misfit_scales as misfit_scales, scaled as scaled_for_misfit
 from ._monitor import monitor as monitor
 from ._nuisance import (
     DEFAULT_NUISANCE as DEFAULT_NUISANCE,
+    check_nuisance as check_nuisance,
     default_nuisance as default_nuisance,
     MAX_OFFSET as MAX_OFFSET,
     OFFSET_SCALE as OFFSET_SCALE,
