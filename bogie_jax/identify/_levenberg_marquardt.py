@@ -17,11 +17,11 @@ for a slower one to end, only each evaluation for its slowest member).
 (Marquardt 1963, "An algorithm for least-squares estimation of nonlinear parameters", SIAM J.
 Appl. Math. 11, 431-441), solved as least squares on the stacked system [J; sqrt(lambda) D],
 over the free parameters (the others stay where they are), the step's largest component at
-most `max_step`. The gain ratio rho = (actual decrease) /
-(decrease the linear model predicts) accepts the step when rho > 0 and updates lambda by
-Nielsen's rule: lambda max(1/3, 1 - (2 rho - 1)^3) on acceptance, else lambda nu with nu
-doubling (Madsen, Nielsen & Tingleff, "Methods for non-linear least squares problems", 2004,
-sec. 3.2). A trial point whose residuals or Jacobian are not finite is a rejected step.
+most `max_step`. The gain ratio rho = (actual decrease) / (decrease the linear model
+predicts) accepts the step when rho > 0 and updates lambda by Nielsen's rule:
+lambda max(1/3, 1 - (2 rho - 1)^3) on acceptance, else lambda nu with nu doubling (Madsen,
+Nielsen & Tingleff, "Methods for non-linear least squares problems", 2004, sec. 3.2). A trial
+point whose residuals or Jacobian are not finite is a rejected step.
 
 **Stopping** (`LevenbergMarquardt`; a tolerance of 0 turns its rule off). A fit has converged
 when, at its current point,
@@ -80,7 +80,7 @@ class LevenbergMarquardt(eqx.Module):
       coordinates 1 is a factor e, and it keeps a Gauss-Newton step from an ill-determined
       start from throwing a parameter onto the flat end of a logistic map;
     - `bound_tol`: a parameter within this fraction of its box width of a bound is held there
-      (left out of the offset) by `identify`'s evaluation.
+      (left out of the step and the offset) by `identify`'s evaluation.
 
     **Raises:** `ValueError` naming a field outside its range."""
 
