@@ -16,8 +16,8 @@ from bogie_jax.monitor import (
     decision_z,
     judge,
     misfit_scales,
+    scaled_for_misfit as scaled,
 )
-from bogie_jax.monitor import scaled_for_misfit as scaled
 
 
 N, CHANNELS = 300, ("a_y", "b_y", "c_z")

@@ -36,6 +36,7 @@ from ._defects import (
     as_defect_scenario as as_defect_scenario,
     scenario_measurements as scenario_measurements,
 )
+from ._discrepancy import Discrepancy as Discrepancy, model_discrepancy as model_discrepancy
 from ._elements import (
     DEFAULT_CANDIDATES as DEFAULT_CANDIDATES,
     DEFAULT_FAILED_FRACTION as DEFAULT_FAILED_FRACTION,
@@ -77,16 +78,18 @@ from ._imperfections import (
     with_speed_error as with_speed_error,
     worn_wheels as worn_wheels,
 )
-from ._discrepancy import Discrepancy as Discrepancy, model_discrepancy as model_discrepancy
-from ._misfit_scale import misfit_scales as misfit_scales, scaled as scaled_for_misfit
+from ._misfit_scale import (
+    misfit_scales as misfit_scales,
+    scaled_for_misfit as scaled_for_misfit,
+)
 from ._monitor import monitor as monitor
 from ._nuisance import (
     DEFAULT_NUISANCE as DEFAULT_NUISANCE,
-    check_nuisance as check_nuisance,
-    default_nuisance as default_nuisance,
     MAX_OFFSET as MAX_OFFSET,
     OFFSET_SCALE as OFFSET_SCALE,
     SPEED_SCALE as SPEED_SCALE,
+    check_nuisance as check_nuisance,
+    default_nuisance as default_nuisance,
 )
 from ._options import MonitorOptions as MonitorOptions
 from ._profile import ProfilePoint as ProfilePoint, profile_point as profile_point

@@ -149,7 +149,9 @@ def statistics(space: FitSpace, coords, estimate: Estimate) -> Statistics:
         cov = with_model_error(cov, track_p + model_p)
     effect = estimate.track_effect
     dofs = (
-        p.options.noise.residual_dof(dof), max(effect.draws, 1) if effect else math.inf, model_dof
+        p.options.noise.residual_dof(dof),
+        max(effect.draws, 1) if effect else math.inf,
+        model_dof,
     )
     track_var = np.diag(track_p)
     return Statistics(

@@ -50,7 +50,7 @@ def misfit_scales(space, fit, goodness: GoodnessOfFit, n_coords: int) -> np.ndar
     return rho
 
 
-def scaled(verdict: Verdict, rho: float) -> Verdict:
+def scaled_for_misfit(verdict: Verdict, rho: float) -> Verdict:
     """`verdict` with its standard error and interval scaled for the misfit `rho` (module
     docstring); the factor and the unscaled error in its evidence (`misfit_scale`,
     `std_error_before_misfit_scale`)."""

@@ -40,7 +40,7 @@ import scipy.stats
 from ..params import element_names, get_parameter
 from ._elements import tied_group
 from ._goodness import group_excess
-from ._misfit_scale import misfit_scales, scaled
+from ._misfit_scale import misfit_scales, scaled_for_misfit
 from ._program import JointProgram
 from ._verdict import Verdict, interval_outside
 
@@ -192,7 +192,7 @@ def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
     `columns` free (module docstring); otherwise kept, with the check in its evidence. The test
     that made the alarm (`decisive_test`) is repeated at the freed estimate and standard error:
     a Wald statistic exactly, a profile statistic scaled by the distance to the limit in ln p
-    and by the standard errors' ratios (freed; misfit-scaled, `_misfit_scale.scaled`).
+    and by the standard errors' ratios (freed; misfit-scaled, `_misfit_scale.scaled_for_misfit`).
     `columns` `None`: no suspect is freed."""
     step, ratio = (0.0, 1.0) if columns is None else freed_step(jac, r, columns, index)
     before = verdict.evidence.get("std_error_before_misfit_scale", verdict.std_error)
@@ -235,7 +235,8 @@ def screen(space, fit, n_coords: int, verdicts, goodness, s2: float, say):
     suspects, columns = find_suspects(space, fit, goodness, s2)
     goodness = dataclasses.replace(goodness, suspects=suspects)
     rho = misfit_scales(space, fit, goodness, n_coords)
-    out = [scaled(v, x) for v, x in zip(verdicts[:n_coords], rho)] + list(verdicts[n_coords:])
+    out = [scaled_for_misfit(v, x) for v, x in zip(verdicts[:n_coords], rho)]
+    out += list(verdicts[n_coords:])
     free = None
     if suspects:
         p = space.program.problem
