@@ -676,18 +676,16 @@ def test_joint_objective_works_with_fit_and_fisher_information(nominal, getkey):
 def test_monitor_on_imperfect_data_of_the_demo_case():
     """The demo's case (left anti-yaw damper at 50 %, 0.5 s at 100 Hz, 30 and 50 m/s, the run
     shapes of this module, so its compiled simulation is reused; sensor noise, a track
-    record with 0.3 mm error and 0.1 m offset) plus a yaw-rate sensor whose noise is 5 times
-    what its layout states (item 4e). With the sensors' nominal weights and Gauss-Newton intervals
-    (`noise="max", covariance="gauss-newton", remove_bias=False`) this data set gave 3 false
-    alarms (primary dampers) and the left damper's interval missed the truth (measured
-    2026-11-23 without the extra yaw-rate noise, not asserted). The defaults (run corrections
-    on) find the damper by its profile test (the track record's error leaves its sandwich
-    interval wider than the band: the Wald rule alone called it `not identifiable`), its 95 %
-    interval holds the truth, no false alarm, the yaw-rate channel's noise is estimated at
-    about 5 times its stated level, and the sandwich standard errors are no smaller than the
-    Gauss-Newton ones. With `run_corrections=False` the uncorrected 0.1 m offset pulls
-    primary.2R.cz to 884 N s/m (truth 4000), 3.4 profile standard errors below its band: a
-    false alarm (measured 2026-11-26, not asserted)."""
+    record with 0.3 mm error and 0.1 m offset, the error not told to `monitor`) plus a yaw-rate
+    sensor whose noise is 5 times what its layout states (item 4e). The record's error leaves
+    10 to 65 times the expected low-band residual in the frame and axlebox groups: the data are
+    not explained, every standard error is scaled for that misfit, and the left damper's alarm
+    (its profile test rejects the band before the scaling) is withheld: no alarm at all, the
+    damper's 95 % interval holding the truth. The yaw-rate channel's noise is estimated at
+    about 5 times its stated level, and no standard error is below its Gauss-Newton one. With
+    the sensors' nominal weights and Gauss-Newton intervals this data set gave 3 false alarms
+    (primary dampers; measured 2026-11-23, not asserted); told the record's error, the demo
+    finds the damper (`test_demo_verdicts_json_schema`)."""
     import dataclasses
 
     params = manchester_benchmark()
@@ -709,11 +707,12 @@ def test_monitor_on_imperfect_data_of_the_demo_case():
     ]
     result = monitor(data, tracks, params=params)
     left = result.verdict("yaw_dampers.left.c")
-    assert left.verdict in ("degraded", "failed")
+    assert not result.explained
+    assert {t.group for t in result.misfits} >= {"frame vertical", "axlebox lateral"}
+    assert result.alarms == ()
+    assert left.evidence["withheld"] == "degraded" and left.evidence["misfit_scale"] > 4
     assert "profile" in left.evidence["tests"][0]
-    assert [v.name for v in result.alarms] == [left.name]
-    if left.name == "yaw_dampers.left.c":
-        assert left.ci95[0] <= 200e3 <= left.ci95[1]
+    assert left.ci95[0] <= 200e3 <= left.ci95[1]
     fit = result.fit
     assert fit.noise == "per-channel" and fit.covariance == "sandwich" and fit.bias_removed
     assert fit.reweights >= 1 and fit.bandwidth >= 1
