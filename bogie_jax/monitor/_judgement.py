@@ -20,11 +20,10 @@ import math
 import numpy as np
 
 from ..cost import GaussNewtonCovariance, relative_to_nominal, with_model_error
-from ..identify import satterthwaite_dof
+from ..identify import HostFit, satterthwaite_dof
 from ..params import resolve_parameter
 from ._discrepancy import model_discrepancy
 from ._elements import nominal_values
-from ._host_fit import HostFit
 from ._profile import ProfilePoint, profile_point
 from ._program import FitSpace
 from ._track_error import RecordError, Sampling, TrackErrorEffect, track_error_effect

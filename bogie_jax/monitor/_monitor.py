@@ -9,9 +9,9 @@ The steps, each a function that takes what the last one returned:
 3. `_fit.select_elements`: the identifiability rule (`_elements.py`) on the Jacobian with the
    sensor bias (`bogie_jax.cost.RunChannels`) and the nuisance columns (`_nuisance.py`)
    profiled out: elements alone, groups, or not identifiable;
-4. `_fit.fit_runs`: a Levenberg-Marquardt fit (`_host_fit.py`) of the identifiable coordinates
-   with every nuisance parameter, over growing horizons (`_horizon.py`), repeated without a run
-   the fit cannot explain (`_checks.failed_runs`);
+4. `_fit.fit_runs`: a Levenberg-Marquardt fit (`bogie_jax.identify.levenberg_marquardt`) of
+   the identifiable coordinates with every nuisance parameter, over growing horizons
+   (`_horizon.py`), repeated without a run the fit cannot explain (`_checks.failed_runs`);
 5. `_fit.reweight`: each run-channel's noise estimated and the fit reweighted, by the noise
    model (`bogie_jax.cost.AbstractNoiseModel`);
 6. `_judgement.track_record_term`: the track records' error term and bias (`_track_error.py`);
