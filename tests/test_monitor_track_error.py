@@ -7,6 +7,7 @@ tests/test_monitor.py (through the demo, which shares that module's compiled pro
 """
 
 import dataclasses
+import threading
 import types
 
 import numpy as np
@@ -230,20 +231,23 @@ def test_a_failed_draw_is_left_out():
     rng = np.random.default_rng(2)
     values = _record(rng, 41)
     track = TrackIrregularity(0.0, 0.5, values)
-    calls = {"n": 0}
+    lock, calls = threading.Lock(), {"n": 0, "failed": False}
 
     def evaluate_at(tracks, phi):
-        calls["n"] += 1
+        with lock:  # the refits run in threads: the first second step fails, whichever it is
+            calls["n"] += 1
+            fail = bool(np.any(np.asarray(phi) != 0)) and not calls["failed"]
+            calls["failed"] |= fail
         r = np.full(10, float(np.sum(np.asarray(tracks[0].values) - values))) - phi.sum()
-        return (r if calls["n"] != 3 else np.full(10, np.inf)), np.eye(10)[:, :2]
+        return (np.full(10, np.inf) if fail else r), np.eye(10)[:, :2]
 
     def derivatives_at(errors, phi):
         d = np.array([np.full(10, float(np.sum(es[0].values))) for es in errors])
         d[1] = np.nan
         return np.zeros(10), d
 
-    # one worker, in order: call 1 the start; pair 1: 2, 3 (its second step fails), 4, 5;
-    # pairs 2, 3: 6 to 13
+    # the start (phi = 0) and every refit's first step (from phi = 0) evaluate at phi = 0, the
+    # second steps elsewhere: 1 + 3 pairs x 2 records x 2 steps = 13 calls, one pair left out
     fit = _linear_fit(evaluate_at, [track], derivatives_at)
     effect = track_error_effect(
         fit, [track], np.zeros(2), RecordError(1e-4, SEMI), Sampling(5, pairs=3, workers=1)
@@ -251,11 +255,11 @@ def test_a_failed_draw_is_left_out():
     assert effect.draws == 4 and effect.refit_draws == 2 and effect.covariance.shape == (2, 2)
     assert effect.misfits.shape == (4, 10) and calls["n"] == 13
     assert np.all(np.isfinite(effect.covariance)) and np.all(np.isfinite(effect.bias))
-    calls["n"] = 0
+    calls.update(n=0, failed=False)
     again = track_error_effect(
         fit, [track], np.zeros(2), RecordError(1e-4, SEMI), Sampling(5, pairs=3, workers=4)
     )
-    assert again.draws == 4 and calls["n"] == 13
+    assert again.draws == 4 and again.refit_draws == 2 and calls["n"] == 13
     np.testing.assert_array_equal(again.covariance, effect.covariance)
     for bad in ({"refit_steps": 0}, {"pairs": 0}, {"draws": 1.5}):
         with pytest.raises(ValueError, match=next(iter(bad))):
