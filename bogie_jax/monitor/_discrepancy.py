@@ -30,7 +30,7 @@ import dataclasses
 import numpy as np
 
 from ..cost import RunChannels
-from ._goodness import HIGH_BAND_START
+from ._goodness import HIGH_BAND_START, _run_blocks
 
 
 DANIELL_BINS = 5  # bins averaged in a cross-spectral estimate
@@ -83,18 +83,16 @@ def model_discrepancy(r, jac, runs: RunChannels, rates, misfits=None) -> Discrep
     (m, p) in the fit's weighted, bias-projected rows, `runs` their layout (missing samples and
     those outside the fit's window are zero), `rates` [Hz] each run's sample rate, `misfits`
     (D, m) the track records' error draws or `None`."""
-    r, jac = np.asarray(r, dtype=float), np.asarray(jac, dtype=float)
-    c, p = runs.n_channels, jac.shape[1]
     mask = np.asarray(runs.mask, dtype=float)
-    meat, bins = np.zeros((p, p)), 0
-    for k, sl in enumerate(runs.slices):
-        if not runs.active[k]:
-            continue
-        block = lambda x: (x[..., sl] * mask[sl]).reshape(*x.shape[:-1], -1, c)
-        draws = None if misfits is None or not len(misfits) else block(np.asarray(misfits))
-        jb = (jac[sl] * mask[sl, None]).reshape(-1, c, p)
-        m_k, b_k = _run_meat(block(r), jb, draws, rates[k])
+    r, jac = np.asarray(r, dtype=float) * mask, np.asarray(jac, dtype=float).T * mask  # (p, m)
+    misfits = None if misfits is None or not len(misfits) else np.asarray(misfits) * mask
+    meat, bins = np.zeros((jac.shape[0],) * 2), 0
+    for k in np.flatnonzero(runs.active):
+        draws = None if misfits is None else _run_blocks(runs, k, misfits)
+        jb = np.moveaxis(_run_blocks(runs, k, jac), 0, -1)  # (n, c, p)
+        m_k, b_k = _run_meat(_run_blocks(runs, k, r), jb, draws, rates[k])
         meat, bins = meat + m_k, bins + b_k
+    jac = jac.T
     h_pinv = np.linalg.pinv(jac.T @ jac, rcond=1e-12, hermitian=True)
     cov = h_pinv @ meat @ h_pinv
     w, v = np.linalg.eigh(0.5 * (cov + cov.T))
