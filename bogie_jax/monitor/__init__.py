@@ -93,6 +93,11 @@ from ._nuisance import (
 )
 from ._options import MonitorOptions as MonitorOptions
 from ._profile import ProfilePoint as ProfilePoint, profile_point as profile_point
+from ._record_shape import (
+    RECORD_BAND as RECORD_BAND,
+    mixed_effect as mixed_effect,
+    white_share as white_share,
+)
 from ._result import (
     MISFIT_LIMIT as MISFIT_LIMIT,
     FitSummary as FitSummary,

@@ -2,7 +2,8 @@
 coordinate and the fit's summary.
 
 - The track records' error (`_track_error.py`) adds its covariance term and its bias, removed
-  by simulation-extrapolation from the well-determined element coordinates (`estimate_of`).
+  by simulation-extrapolation from the well-determined element coordinates (`estimate_of`);
+  elsewhere the bias's square joins the term's variance.
 - The covariance of all fitted coordinates (nuisance included, so the intervals carry the
   nuisance's uncertainty) by the options' covariance rule with the noise model's sigma^2, in the
   coordinates p / p_nominal (`bogie_jax.cost.relative_to_nominal`), plus the records' term and,
@@ -33,9 +34,10 @@ from ._verdict import Verdict, decision_z, judge
 SIMEX_MAX_SPREAD = 0.1  # [-], ln p: the records' bias is removed where it and their spread are less
 
 
-def track_record_term(space: FitSpace, fit: HostFit, say) -> TrackErrorEffect | None:
+def track_record_term(space: FitSpace, fit: HostFit, say, band=None) -> TrackErrorEffect | None:
     """The track records' error in the fitted coordinates at the estimate (`_track_error.py`),
-    or `None` without a `track_error` or a fit."""
+    shaped like the track or, with a wavelength `band` [m], white over it (`RecordError`); `None`
+    without a `track_error` or a fit."""
     p = space.program.problem
     o = p.options
     if not o.track_error > 0 or fit.status == "failed":
@@ -43,7 +45,7 @@ def track_record_term(space: FitSpace, fit: HostFit, say) -> TrackErrorEffect | 
     say(f"track record error {1e3 * o.track_error:.3g} mm: {o.track_error_draws} realisations")
     semi_distance = float(np.asarray(p.params.contact.contact_semi_distance))
     return track_error_effect(
-        space, p.tracks, fit.phi, RecordError(o.track_error, semi_distance),
+        space, p.tracks, fit.phi, RecordError(o.track_error, semi_distance, band),
         Sampling(o.track_error_draws), references=[m.track for m in p.measurements],
         start=(fit.r, fit.jac),
     )  # fmt: skip
@@ -106,12 +108,14 @@ class Statistics:
 
 
 def _track_covariance(estimate: Estimate, scale) -> np.ndarray:
-    """The records' term in reported units, with the Monte Carlo variance of a removed bias."""
+    """The records' term in reported units, with the Monte Carlo variance of a removed bias and
+    the square of a bias too large to remove (`estimate_of`)."""
     effect = estimate.track_effect
     if effect is None:
         return np.zeros((scale.size, scale.size))
-    removed = np.where(estimate.corrected, effect.bias_variance, 0.0)
-    return np.outer(scale, scale) * (effect.covariance + np.diag(removed))
+    kept = np.where(np.isfinite(effect.bias), effect.bias, 0.0) ** 2
+    bias_var = np.where(estimate.corrected, effect.bias_variance, kept)
+    return np.outer(scale, scale) * (effect.covariance + np.diag(bias_var))
 
 
 def _discrepancy_covariance(space: FitSpace, estimate: Estimate, scale):

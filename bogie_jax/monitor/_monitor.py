@@ -14,7 +14,8 @@ The steps, each a function that takes what the last one returned:
    (`_horizon.py`), repeated without a run the fit cannot explain (`_checks.failed_runs`);
 5. `_fit.reweight`: each run-channel's noise estimated and the fit reweighted, by the noise
    model (`bogie_jax.cost.AbstractNoiseModel`);
-6. `_judgement.track_record_term`: the track records' error term and bias (`_track_error.py`);
+6. `_record_shape.record_term`: the track records' error term and bias (`_track_error.py`),
+   its shape (like the track, or partly white) chosen by the misfit it leaves;
 7. `_judgement.statistics` and `judge_*`: the covariance by the covariance rule, a verdict per
    coordinate (`_verdict.judge`, profile tests by `_profile.py`);
 8. `_goodness.fit_goodness`: does the fit explain the data, per run and channel group; where
@@ -44,11 +45,11 @@ from ._judgement import (
     judge_coordinates,
     judge_unidentifiable,
     statistics,
-    track_record_term,
 )
 from ._nuisance import check_nuisance
 from ._options import MonitorOptions
 from ._program import FitSpace, JointProgram, MonitorProblem
+from ._record_shape import record_term
 from ._result import FitSummary, MonitorResult, RunStatus
 from ._suspects import screen
 
@@ -93,7 +94,7 @@ def monitor(
     timings["fit_s"] = time.perf_counter() - t0
     weights = member_weights(done.space, coords, done.fit)
     t0 = time.perf_counter()
-    effect = track_record_term(done.space, done.fit, say)
+    effect = record_term(done.space, done.fit, say)
     if effect is not None:
         timings["track_error_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -227,7 +228,8 @@ def fit_summary(space: FitSpace, judged: "_Judged | None") -> FitSummary:
         reweights=done.reweights, channel_noise=noise_levels,
         nuisance=fitted_nuisance(space, stats, len(judged.coords)),
         track_error_draws=0 if effect is None else effect.draws, horizons=fit_stages(space.program),
-        misfit_ratio=misfit_ratio(space, judged), **common,
+        misfit_ratio=misfit_ratio(space, judged),
+        track_error_white_share=0.0 if effect is None else effect.white_share, **common,
     )  # fmt: skip
 
 

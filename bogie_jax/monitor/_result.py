@@ -84,7 +84,10 @@ class FitSummary:
     (`monitor`'s `horizon_start`; `()`: one fit of the whole record); `misfit_ratio`: with a
     `track_error`, 2 `cost` over the residual sum of squares that the records' error and the
     sensors' stated noise should leave at the right minimum (`_track_error.py`; about 1 when
-    the fit explains the data as well as those errors allow; NaN without a `track_error`)."""
+    the fit explains the data as well as those errors allow; NaN without a `track_error`);
+    `track_error_white_share`: the share of the records' error variance taken as white over
+    the recording band rather than shaped like the track (`_record_shape.py`; 0 where the fit
+    explains the data with the track-shaped error)."""
 
     names: tuple[str, ...]
     status: str
@@ -109,6 +112,7 @@ class FitSummary:
     track_error_draws: int = 0
     horizons: tuple[float, ...] = ()
     misfit_ratio: float = float("nan")
+    track_error_white_share: float = 0.0
 
     @property
     def explains_data(self) -> bool:
@@ -205,6 +209,11 @@ class MonitorResult:
                     f"{r.position_offset_se:.2g} m, speed x {r.speed_factor:.5f} +- "
                     f"{r.speed_factor_se:.1e}"
                 )
+        if self.fit.track_error_white_share > 0:
+            rows.append(
+                f"track records' error: {100 * self.fit.track_error_white_share:.0f} % of its "
+                "variance white over the recording band (the data call for it)"
+            )
         warning = misfit_warning(self.fit.misfit_ratio)
         if warning:
             rows.append(warning)

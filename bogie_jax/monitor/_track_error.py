@@ -100,6 +100,22 @@ def record_error(values, rms: float, semi_distance: float, rng, reference=None) 
     )
 
 
+def band_error(values, ds: float, rms: float, semi_distance: float, rng, band) -> np.ndarray:
+    """One realisation `(n, 3)` of a record error white over the wavelength `band` (lo, hi) [m]
+    on the record `values` `(n, 3)` sampled every `ds` [m]: independent complex normal Fourier
+    coefficients at the record's wavenumbers 1 / hi to 1 / lo [1/m], none elsewhere, scaled
+    (`scaled_error`); `rng`: a numpy `Generator`. A channel of the record without power gets
+    no error."""
+    v = np.asarray(values, dtype=float)
+    n = v.shape[0]
+    wavenumbers = np.fft.rfftfreq(n, d=ds)
+    inside = (wavenumbers >= 1.0 / band[1]) & (wavenumbers <= 1.0 / band[0])
+    shape = (wavenumbers.size, 3)
+    coefficients = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) * inside[:, None]
+    powered = np.any(v != v[:1], axis=0)
+    return scaled_error(np.fft.irfft(coefficients, n=n, axis=0) * powered, rms, semi_distance)
+
+
 REFIT_STEPS = 2  # Gauss-Newton steps of each refit (module docstring)
 BIAS_PAIRS = 4  # antithetic pairs of refits for the bias (module docstring)
 
@@ -107,13 +123,19 @@ BIAS_PAIRS = 4  # antithetic pairs of refits for the bias (module docstring)
 @dataclasses.dataclass(frozen=True)
 class RecordError:
     """The records' error model: RMS `rms` [m] in alignment and vertical level, cross level over
-    the contact distance 2 `semi_distance` [m] (module docstring); `draw` is `record_error`."""
+    the contact distance 2 `semi_distance` [m] (module docstring); shaped like the track
+    (`record_error`) where `band` is `None`, else white over that wavelength band (lo, hi) [m]
+    (`band_error`)."""
 
     rms: float
     semi_distance: float
+    band: tuple[float, float] | None = None
 
-    def draw(self, values, rng, reference=None) -> np.ndarray:
-        return record_error(values, self.rms, self.semi_distance, rng, reference)
+    def draw(self, track, rng, reference=None) -> np.ndarray:
+        """One realisation `(n, 3)` for the record `track` (a `TrackIrregularity`)."""
+        if self.band is None:
+            return record_error(track.values, self.rms, self.semi_distance, rng, reference)
+        return band_error(track.values, track.ds, self.rms, self.semi_distance, rng, self.band)
 
 
 class TrackErrorEffect(NamedTuple):
@@ -127,6 +149,7 @@ class TrackErrorEffect(NamedTuple):
     refit_draws: int  # antithetic pairs whose every refit step solved (the bias's mean)
     misfits: np.ndarray  # (draws, m): each draw's (I - J J^+) dr, in the fit's weighted rows
     bias_variance: np.ndarray  # (n,): the Monte Carlo variance of `bias` (inf: one pair)
+    white_share: float = 0.0  # of the error's variance white over a band (`_record_shape.py`)
 
 
 def _finite(*arrays) -> bool:
@@ -212,7 +235,7 @@ def track_error_effect(
     phi = np.asarray(phi, dtype=float)
     references = [None] * len(tracks) if references is None else list(references)
     errors = [
-        [error.draw(t.values, rng, ref) for t, ref in zip(tracks, references)]
+        [error.draw(t, rng, ref) for t, ref in zip(tracks, references)]
         for _ in range(sampling.draws)
     ]  # fmt: skip
     start = fit.evaluate_on(list(tracks), phi) if start is None else start

@@ -1,0 +1,100 @@
+"""The shape of the track records' error, chosen by the misfit it leaves.
+
+`MonitorOptions.track_error` states only the records' error RMS. The records' term
+(`_track_error.py`) draws that error shaped like the track, which puts nearly all of its power
+at the longest wavelengths. A recording car's error need not look like that: noise of its
+sensors is closer to white over the recording band, `RECORD_BAND` = 3-70 m (EN 13848-1:2019's
+wavelength ranges D1 and D2). At the same RMS such an error carries far more short-wave power
+than the track, which excites the primary suspension's vertical modes: on the detection
+benchmark's `track-white` mode (50 cases, 0.1-0.3 mm) the primary vertical stiffnesses came
+out 18-24 % low on average, an errors-in-variables bias the track-shaped term put at under 1 %,
+while the goodness-of-fit test (`_goodness.py`) rejected every case. The two shapes leave
+different misfits, so the data choose between them:
+
+- where the fit explains the data with the track-shaped error, that term stands;
+- otherwise the term is computed again with an error white over `RECORD_BAND` of the same RMS,
+  and the error is taken as sqrt(1 - w) times a track-shaped and sqrt(w) times a white one,
+  independent, with the stated RMS in all. Every quantity of the term is of second order in
+  the error, so each mixes linearly in w: the covariance, the bias (SIMEX: second order), the
+  misfit and each draw's misfit power (`mixed_effect`);
+- w minimises the sum over run-groups of the squared excess of the goodness statistic over its
+  null mean, `(1 - w) X_track + w X_white` per group (least squares in one unknown, clipped to
+  [0, 1]): a misfit spread over the groups as the white error spreads it is absorbed, one that
+  sits in a few groups (a failed element the fit does not judge) is not, and its groups still
+  fail the test that follows with the mixed term.
+
+The shape is one number fitted to the statistics the test then uses, so the test is slightly
+liberal for it; the verdicts carry the mixed term's covariance and, where its bias is too large
+to remove, that bias as uncertainty (`_judgement._track_covariance`).
+"""
+
+import numpy as np
+
+from ._goodness import fit_goodness
+from ._judgement import track_record_term
+from ._track_error import TrackErrorEffect
+
+
+RECORD_BAND = (3.0, 70.0)  # [m]: EN 13848-1:2019, wavelength ranges D1 (3-25 m) and D2 (25-70 m)
+
+
+def white_share(track, white) -> float:
+    """The share w in [0, 1] of the white error's variance (module docstring) from the goodness
+    of fit (`GoodnessOfFit`) with the `track`-shaped and with the `white` error's term: the
+    least-squares root of the run-groups' excess of the statistic over its null mean."""
+    x_track, x_white = _excess(track), _excess(white)
+    if x_track.shape != x_white.shape or not x_track.size:
+        return 0.0
+    slope = x_track - x_white
+    denominator = float(np.sum(slope**2))
+    if not denominator > 0.0:
+        return 0.0
+    return float(np.clip(np.sum(x_track * slope) / denominator, 0.0, 1.0))
+
+
+def _excess(goodness) -> np.ndarray:
+    """Each run-group test's statistic less its null mean."""
+    return np.array([t.statistic - t.expected for t in goodness.tests], dtype=float)
+
+
+def mixed_effect(track: TrackErrorEffect, white: TrackErrorEffect, w: float) -> TrackErrorEffect:
+    """The records' term of an error sqrt(1 - w) `track`-shaped and sqrt(w) `white` (module
+    docstring); each draw's misfit scaled so that the draws' mean power mixes as the rest."""
+    if w <= 0.0 or not white.draws:
+        return track
+    if w >= 1.0 or not track.draws:
+        return white._replace(white_share=1.0)
+    a, b = 1.0 - w, w
+    k = track.draws + white.draws
+    misfits = np.concatenate(
+        [np.sqrt(a * k / track.draws) * track.misfits, np.sqrt(b * k / white.draws) * white.misfits]
+    )  # fmt: skip
+    return TrackErrorEffect(
+        covariance=a * track.covariance + b * white.covariance,
+        bias=a * track.bias + b * white.bias,
+        draws=k,
+        misfit_ss=a * track.misfit_ss + b * white.misfit_ss,
+        bias_by_step=a * track.bias_by_step + b * white.bias_by_step,
+        refit_draws=min(track.refit_draws, white.refit_draws),
+        misfits=misfits,
+        bias_variance=a**2 * track.bias_variance + b**2 * white.bias_variance,
+        white_share=w,
+    )
+
+
+def record_term(space, fit, say) -> TrackErrorEffect | None:
+    """`monitor`'s step 6: the records' term (`_judgement.track_record_term`) with its shape
+    chosen by the misfit (module docstring): the track-shaped term where it is `None`, has no
+    draws or the fit explains the data with it; else mixed with the term of an error white over
+    `RECORD_BAND`, its white share in `white_share`."""
+    track = track_record_term(space, fit, say)
+    if track is None or not track.draws:
+        return track
+    goodness = fit_goodness(space, fit, track)
+    if goodness.explained:
+        return track
+    say("the data are not explained with a track-shaped record error: trying a white one")
+    white = track_record_term(space, fit, say, band=RECORD_BAND)
+    w = white_share(goodness, fit_goodness(space, fit, white))
+    say(f"record error: {100 * w:.0f} % of its variance white over the recording band")
+    return mixed_effect(track, white, w)

@@ -1,0 +1,143 @@
+"""The shape of the track records' error (`bogie_jax/monitor/_record_shape.py`), against numpy
+and scipy oracles on linear models (no simulation): a white error's spectrum and level, the
+term of a mixed error against a Monte Carlo of that error, and the white share against a
+bounded scalar minimisation."""
+
+import types
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+from bogie_jax.monitor import (
+    RECORD_BAND,
+    GoodnessOfFit,
+    Misfit,
+    RecordError,
+    Sampling,
+    mixed_effect,
+    track_error_effect,
+    white_share,
+)
+from bogie_jax.track import TrackIrregularity
+
+
+SEMI = 0.7465  # [m] contact semi-distance b_0
+DS = 0.25  # [m] record spacing
+
+
+def _record(rng, n):
+    """A red (track-like) record of n samples: cumulated white noise, three channels."""
+    return np.cumsum(rng.standard_normal((n, 3)), axis=0) * np.array([1e-4, 2e-4, 1e-4])
+
+
+def test_a_band_error_is_white_over_the_band_with_the_stated_level():
+    """Oracle: the discrete Fourier transform. Over 400 draws the mean power of every bin inside
+    the band is the same (chi^2_2 per draw: relative spread 1 / sqrt(400) = 5 % per bin, held
+    to 25 %), none lies outside, each draw has the stated RMS per channel exactly, and a
+    channel without power in the record gets none."""
+    rng = np.random.default_rng(0)
+    n, rms = 1200, 2e-4
+    values = _record(rng, n)
+    values[:, 2] = 0.0
+    track = TrackIrregularity(0.0, DS, values)
+    error = RecordError(rms, SEMI, RECORD_BAND)
+    draws = np.array([error.draw(track, rng) for _ in range(400)])
+    np.testing.assert_allclose(np.sqrt(np.mean(draws**2, axis=1))[:, :2], rms, rtol=1e-12)
+    assert np.all(draws[:, :, 2] == 0.0)
+    power = np.mean(np.abs(np.fft.rfft(draws[:, :, :2], axis=1)) ** 2, axis=0)
+    wavenumber = np.fft.rfftfreq(n, d=DS)
+    inside = (wavenumber >= 1 / RECORD_BAND[1]) & (wavenumber <= 1 / RECORD_BAND[0])
+    assert inside.sum() > 80 and np.all(power[~inside] < 1e-20 * power[inside].mean())
+    np.testing.assert_allclose(power[inside] / power[inside].mean(axis=0), 1.0, atol=0.25)
+
+
+class _Mixture:
+    """A record error sqrt(1 - w) times a track-shaped and sqrt(w) times a white one, each at
+    the full RMS and drawn independently: the error whose term `mixed_effect` claims to be."""
+
+    def __init__(self, rms, w):
+        self.track, self.white, self.w = (
+            RecordError(rms, SEMI),
+            RecordError(rms, SEMI, RECORD_BAND),
+            w,
+        )
+
+    def draw(self, track, rng, reference=None):
+        a = self.track.draw(track, rng, reference)
+        return np.sqrt(1 - self.w) * a + np.sqrt(self.w) * self.white.draw(track, rng, reference)
+
+
+def test_the_mixed_term_is_the_term_of_the_mixed_error():
+    """A model linear in its record, r = y - A phi - G e: the covariance of the estimates' shift
+    and the misfit outside the span of A of a mixed error (`_Mixture`, 3000 draws) against
+    `mixed_effect` of the two shapes' terms (3000 draws each). The relative error of a variance
+    from 3000 draws is about sqrt(2 / 3000) = 2.6 %; held to 12 %. The model responds to the
+    record's curvature, where the shapes' powers differ: their terms differ several-fold,
+    so the check separates w from 1 - w."""
+    rng = np.random.default_rng(1)
+    n_s, m, n, rms, w = 121, 150, 3, 3e-4, 0.3
+    values = _record(rng, n_s)
+    track = TrackIrregularity(0.0, DS, values)
+    a = rng.standard_normal((m, n))
+    # a response to the record's curvature (second differences): short waves count most
+    curvature = np.kron(np.diff(np.eye(n_s), 2, axis=0), np.eye(3)) / DS**2
+    g = rng.standard_normal((m, curvature.shape[0])) @ curvature * 10.0
+    y = rng.standard_normal(m)
+
+    def evaluate_at(tracks, phi):
+        e = np.asarray(tracks[0].values) - values
+        return y - a @ phi - g @ e.reshape(-1), -a
+
+    def derivatives(errors, phi):
+        return evaluate_at([track], phi)[0], np.array(
+            [-g @ es[0].values.reshape(-1) for es in errors]
+        )
+
+    fit = types.SimpleNamespace(evaluate_on=evaluate_at, track_derivatives=derivatives)
+
+    def term(error, seed):
+        return track_error_effect(fit, [track], np.zeros(n), error, Sampling(3000, seed=seed))
+
+    shaped, white = term(RecordError(rms, SEMI), 2), term(RecordError(rms, SEMI, RECORD_BAND), 3)
+    ratio = np.diag(white.covariance) / np.diag(shaped.covariance)
+    assert np.all((ratio < 0.5) | (ratio > 2.0))  # the shapes' terms differ several-fold
+    mixed, direct = mixed_effect(shaped, white, w), term(_Mixture(rms, w), 4)
+    np.testing.assert_allclose(np.diag(mixed.covariance), np.diag(direct.covariance), rtol=0.12)
+    assert mixed.misfit_ss == pytest.approx(direct.misfit_ss, rel=0.12)
+    mean_power = np.mean(np.sum(mixed.misfits**2, axis=1))
+    assert mean_power == pytest.approx(mixed.misfit_ss, rel=1e-9)
+    assert mixed.white_share == w
+    assert mixed_effect(shaped, white, 0.0) is shaped
+    assert mixed_effect(shaped, white, 1.0).white_share == 1.0
+
+
+def _goodness(excess):
+    tests = tuple(
+        Misfit(run=k, group=f"g{k}", channels=("c",), statistic=4.0 + x, expected=4.0,
+               track_record=0.0, ratio=(4.0 + x) / 4.0, p_value=0.5)
+        for k, x in enumerate(excess)
+    )  # fmt: skip
+    return GoodnessOfFit(tests, 0.05)
+
+
+@pytest.mark.parametrize(
+    "x_track, x_white",
+    [
+        ([6.0, 6.0, 6.0, 6.0], [-2.0, -2.0, -2.0, -2.0]),  # spread as the white error spreads it
+        ([20.0, 0.5, 0.2, 0.1], [19.0, -3.0, -3.0, -3.0]),  # in one group: little absorbed
+        ([-1.0, 0.5, -0.3, 0.2], [-6.0, -5.0, -4.0, -7.0]),  # the track shape fits: none white
+        ([30.0, 20.0, 25.0, 10.0], [8.0, 4.0, 5.0, 2.0]),  # even all white misses: clipped at 1
+    ],
+)
+def test_the_white_share_minimises_the_groups_squared_excess(x_track, x_white):
+    """Oracle: scipy's bounded scalar minimisation of sum_g ((1 - w) X_track + w X_white)^2 over
+    [0, 1]."""
+    xt, xw = np.array(x_track), np.array(x_white)
+    oracle = scipy.optimize.minimize_scalar(
+        lambda w: np.sum(((1 - w) * xt + w * xw) ** 2), bounds=(0.0, 1.0), method="bounded",
+        options={"xatol": 1e-10},
+    ).x  # fmt: skip
+    got = white_share(_goodness(xt), _goodness(xw))
+    assert got == pytest.approx(oracle, abs=1e-6)
+    assert 0.0 <= got <= 1.0
