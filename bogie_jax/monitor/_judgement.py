@@ -3,7 +3,7 @@ coordinate and the fit's summary.
 
 - The track records' error (`_track_error.py`) adds its covariance term and its bias, removed
   by simulation-extrapolation from the well-determined element coordinates (`estimate_of`);
-  elsewhere the bias's square joins the term's variance.
+  where such a coordinate's bias is too large to extrapolate, its square joins the variance.
 - The covariance of all fitted coordinates (nuisance included, so the intervals carry the
   nuisance's uncertainty) by the options' covariance rule with the noise model's sigma^2, in the
   coordinates p / p_nominal (`bogie_jax.cost.relative_to_nominal`), plus the records' term and,
@@ -54,13 +54,15 @@ def track_record_term(space: FitSpace, fit: HostFit, say, band=None) -> TrackErr
 @dataclasses.dataclass(frozen=True)
 class Estimate:
     """The estimate of a fit: `fit`, its coordinates `phi` less the records' bias where
-    `corrected`, the `track_effect` (or `None`), and `x` = B `phi` (every parameter)."""
+    `corrected`, the `track_effect` (or `None`), `x` = B `phi` (every parameter), and where the
+    bias is kept as uncertainty (`bias_as_variance`, `estimate_of`)."""
 
     fit: HostFit
     phi: np.ndarray
     corrected: np.ndarray
     track_effect: TrackErrorEffect | None
     x: np.ndarray
+    bias_as_variance: np.ndarray
 
 
 def estimate_of(space: FitSpace, fit: HostFit, track_effect, n_log: int) -> Estimate:
@@ -68,17 +70,20 @@ def estimate_of(space: FitSpace, fit: HostFit, track_effect, n_log: int) -> Esti
     where it and the records' first-order spread are both under `SIMEX_MAX_SPREAD` and its
     Monte Carlo variance is known (two refit pairs or more): a
     second-order bias extrapolated from a few Gauss-Newton steps is trusted only there (in ln p
-    the steps' own error grows with the spread squared). Nuisance coordinates keep their
-    fitted values."""
+    the steps' own error grows with the spread squared). Where the spread is under it but the
+    bias is not, the bias is kept and marked `bias_as_variance` (its square joins the variance,
+    `_track_covariance`). Nuisance coordinates keep their fitted values."""
     phi, use = fit.phi, np.zeros(fit.phi.size, dtype=bool)
+    large = use.copy()
     if track_effect is not None:
         bias = np.asarray(track_effect.bias, dtype=float)
         spread = np.sqrt(np.maximum(np.diag(track_effect.covariance), 0.0))
-        use = np.isfinite(bias) & (np.abs(bias) < SIMEX_MAX_SPREAD) & (spread < SIMEX_MAX_SPREAD)
-        use &= np.isfinite(track_effect.bias_variance)
-        use[n_log:] = False
+        small = np.isfinite(bias) & (np.abs(bias) < SIMEX_MAX_SPREAD)
+        use = small & (spread < SIMEX_MAX_SPREAD) & np.isfinite(track_effect.bias_variance)
+        large = np.isfinite(bias) & ~small & (spread < SIMEX_MAX_SPREAD)
+        use[n_log:], large[n_log:] = False, False
         phi = fit.phi - np.where(use, bias, 0.0)
-    return Estimate(fit, phi, use, track_effect, space.matrix() @ phi)
+    return Estimate(fit, phi, use, track_effect, space.matrix() @ phi, large)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,11 +114,11 @@ class Statistics:
 
 def _track_covariance(estimate: Estimate, scale) -> np.ndarray:
     """The records' term in reported units, with the Monte Carlo variance of a removed bias and
-    the square of a bias too large to remove (`estimate_of`)."""
+    the square of a bias too large to remove from a well-determined coordinate (`estimate_of`)."""
     effect = estimate.track_effect
     if effect is None:
         return np.zeros((scale.size, scale.size))
-    kept = np.where(np.isfinite(effect.bias), effect.bias, 0.0) ** 2
+    kept = np.where(estimate.bias_as_variance, effect.bias, 0.0) ** 2
     bias_var = np.where(estimate.corrected, effect.bias_variance, kept)
     return np.outer(scale, scale) * (effect.covariance + np.diag(bias_var))
 
