@@ -141,3 +141,28 @@ def test_the_white_share_minimises_the_groups_squared_excess(x_track, x_white):
     got = white_share(_goodness(xt), _goodness(xw))
     assert got == pytest.approx(oracle, abs=1e-6)
     assert 0.0 <= got <= 1.0
+
+
+@pytest.mark.parametrize("white", [0.0, 0.85])
+def test_the_record_errors_shape_is_told_in_the_summary_json_and_report(white, tmp_path):
+    """The white share (`FitSummary.track_error_white_share`) in the result's summary,
+    `verdicts.json` and the report's rules (constructed result: nothing is simulated)."""
+    from bogie_jax.io import verdicts_record, write_report
+    from bogie_jax.monitor import FitSummary, MonitorResult, ToleranceBand, judge
+
+    band = ToleranceBand((3.2e5, 4.8e5), unit="N s/m", failed_below=1e5)
+    verdict = judge("yaw_dampers.left.c", 4.0e5, 1e4, band, z=2.96, identifiable=True)
+    fit = FitSummary(
+        names=("yaw_dampers.left.c",), status="converged", steps=3, evaluations=4, cost=1.0,
+        noise_variance=1.0, sigma2=1.0, rank=1, condition_number=1.0, runs_used=1,
+        track_error=3e-4, track_error_draws=16, track_error_white_share=white,
+    )  # fmt: skip
+    result = MonitorResult((verdict,), (), fit, (), 0.05, {})
+    told = "85 % of its variance white over the recording band"
+    assert (told in result.table()) is (white > 0)
+    record = verdicts_record(result, date="2026-11-29")
+    assert record["fit"]["track_error_white_share"] == white
+    text = write_report(tmp_path / "report.md", record).read_text()
+    assert "0.3 mm RMS included" in text
+    assert (told in text) is (white > 0)
+    assert ("shaped like the track" in text) is True

@@ -232,10 +232,26 @@ def _standard_errors(fit) -> str:
     else:
         how = f"Gauss-Newton with residual variance {_g(fit.get('sigma2'), 3)}"
     return (
-        f"- Standard errors: {bias}{how} ({sigma2}); the 95 % interval is estimate +- t "
-        "standard errors, t the 0.975 quantile of Student's t with the standard error's degrees "
-        "of freedom (`ci95_dof` in `verdicts.json`; 1.96 where they are unbounded)."
+        f"- Standard errors: {bias}{how} ({sigma2}){_record_error(fit)}; the 95 % interval is "
+        "estimate +- t standard errors, t the 0.975 quantile of Student's t with the standard "
+        "error's degrees of freedom (`ci95_dof` in `verdicts.json`; 1.96 where they are "
+        "unbounded)."
     )
+
+
+def _record_error(fit) -> str:
+    """The track records' error in the standard errors, from the fit record; "" without one."""
+    rms = fit.get("track_error") or 0.0
+    if not rms > 0:
+        return ""
+    white = fit.get("track_error_white_share") or 0.0
+    shape = (
+        f", {100 * white:.0f} % of its variance white over the recording band (the misfit "
+        "calls for it), the rest shaped like the track"
+        if white > 0
+        else ", shaped like the track"
+    )
+    return f"; the track records' error of {1e3 * rms:.3g} mm RMS included{shape}"
 
 
 def write_report(
