@@ -20,6 +20,7 @@ from bogie_jax.monitor import (
     channel_groups,
     decision_z,
     freed_interval,
+    freed_step,
     goodness_of_fit,
     judge,
     omitted_elements,
@@ -177,6 +178,13 @@ def test_an_interval_with_the_suspect_free_is_that_of_the_fit_with_its_column():
         held[1] += free.ci95[0] <= 1.0 <= free.ci95[1]
     print(f"intervals holding the truth: fit {held[0]}/400, with the column free {held[1]}/400")
     assert held[0] < 200 and 360 <= held[1] <= 392
+    # a column that all but determines the coordinate: a step beyond exp's range either way, or
+    # an infinite variance ratio, leaves the verdict as it is
+    delta = 1e-4 * rng.normal(size=(m, 1))
+    for sign in (1.0, -1.0):
+        assert abs(freed_step(jac, sign * 1e6 * delta[:, 0], jac[:, :1] + delta, 0)[0]) > 1e3
+        assert freed_interval(v, 0, jac, sign * 1e6 * delta[:, 0], jac[:, :1] + delta) == v
+    assert freed_interval(v, 0, jac, r, 2.0 * jac[:, :1]) == v
 
 
 def test_elements_not_judged_exclude_candidates_and_their_tied_groups():

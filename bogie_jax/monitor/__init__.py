@@ -108,6 +108,7 @@ from ._result import (
 from ._suspects import (
     Suspect as Suspect,
     freed_interval as freed_interval,
+    freed_step as freed_step,
     omitted_elements as omitted_elements,
     recheck_alarm as recheck_alarm,
     score_tests as score_tests,

@@ -241,14 +241,16 @@ def freed_interval(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
     interval's half-widths scaled by the step's factor and the square root of the variance
     ratio, an element on watch where the new interval lies outside its band (an alarm keeps its
     verdict, decided by `recheck_alarm`); the values before in its evidence. Unchanged where
-    the columns determine the coordinate (an infinite ratio) or its error is not finite."""
+    the columns determine the coordinate (an infinite ratio, a step beyond exp's range) or its error
+    is not finite."""
     step, ratio = freed_step(jac, r, columns, index)
-    if not (math.isfinite(ratio) and math.isfinite(verdict.std_error)):
-        return verdict
-    factor = math.exp(step)
+    with np.errstate(over="ignore"):
+        factor = float(np.exp(step))
     widen = factor * math.sqrt(ratio)
     est, (lo, hi) = verdict.estimate, verdict.ci95
     moved = est * factor
+    if not (factor > 0 and all(math.isfinite(x) for x in (moved, verdict.std_error * widen))):
+        return verdict
     ci95 = (moved - (est - lo) * widen, moved + (hi - est) * widen)
     evidence = dict(
         verdict.evidence, estimate_before_suspects_free=float(est),
