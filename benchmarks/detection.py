@@ -41,9 +41,10 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal,
 options=MonitorOptions(track_error=<the records' error RMS: --track-error's and the track
-modes'>))`, default options otherwise): truth, verdicts (with every `std_error_*` component of
-their evidence, and whether an alarm was withheld as not explained), estimates (and, with a
-track error, the fitted values before its bias is removed), standard errors, 95 % intervals,
+modes'>, model=<--fit-model's: the linear model by default>))`, default options otherwise):
+truth, verdicts (with every `std_error_*` component of their evidence, and whether an alarm
+was withheld as not explained), estimates (and, with a track error, the fitted values before
+its bias is removed), standard errors, 95 % intervals,
 fit status (with the horizon stages fitted, the misfit ratio and the per-channel noise
 estimates, `FitSummary`), whether the data are explained (`MonitorResult.explained`) with the
 goodness-of-fit tests, the misfit run-groups and the suspects, each run's fitted speed factor
@@ -196,6 +197,7 @@ def config_of(args) -> dict:
         # only when given: records written before the option existed keep their configuration
         **({"track_error_mm": float(args.track_error)} if args.track_error else {}),
         **({"nuisance": list(args.nuisance)} if args.nuisance is not None else {}),
+        **({"fit_model": args.fit_model} if args.fit_model != "linear" else {}),
         **_mismatch.config(args.imperfections),
     }
 
@@ -269,6 +271,7 @@ def case_inputs(cfg: dict, index: int) -> dict:
     options = MonitorOptions(
         false_alarm_rate=cfg["false_alarm_rate"], track_error=track_error,
         nuisance=None if nuisance is None else tuple(nuisance),
+        model=nonlinear_options() if cfg.get("fit_model") == "nonlinear" else ModelOptions(),
     )  # fmt: skip
     return dict(
         case=case, nominal=nominal, truth=truth, scenario=bogie["scenario"],
@@ -766,6 +769,11 @@ def main(argv=None):
     p.add_argument(
         "--nuisance", default=None, help="monitor's nuisance parameters: comma-separated names, "
         "or `none` (default: the monitor's, the contact's model-form parameters)",
+    )  # fmt: skip
+    p.add_argument(
+        "--fit-model", choices=("linear", "nonlinear"), default="linear",
+        help="the monitor's model: `linear` (default, `ModelOptions()`) or `nonlinear` (creep "
+        "saturation and blow-off anti-yaw dampers, `nonlinear_options()`)",
     )  # fmt: skip
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
