@@ -1,13 +1,13 @@
 """The shape of the track records' error (`bogie_jax/monitor/_record_shape.py`), against numpy
 and scipy oracles on linear models (no simulation): a white error's spectrum and level, the
-term of a mixed error against a Monte Carlo of that error, and the white share against a
-bounded scalar minimisation."""
+term of a mixed error against a Monte Carlo of that error, and the white share against scipy's
+Fisher combination of p-values."""
 
 import types
 
 import numpy as np
 import pytest
-import scipy.optimize
+import scipy.stats
 
 from bogie_jax.monitor import (
     RECORD_BAND,
@@ -112,35 +112,43 @@ def test_the_mixed_term_is_the_term_of_the_mixed_error():
     assert mixed_effect(shaped, white, 1.0).white_share == 1.0
 
 
-def _goodness(excess):
+def _goodness(p_values):
     tests = tuple(
-        Misfit(run=k, group=f"g{k}", channels=("c",), statistic=4.0 + x, expected=4.0,
-               track_record=0.0, ratio=(4.0 + x) / 4.0, p_value=0.5)
-        for k, x in enumerate(excess)
+        Misfit(run=k, group=f"g{k}", channels=("c",), statistic=1.0, expected=1.0,
+               track_record=0.0, ratio=1.0, p_value=float(p))
+        for k, p in enumerate(p_values)
     )  # fmt: skip
     return GoodnessOfFit(tests, 0.05)
 
 
 @pytest.mark.parametrize(
-    "x_track, x_white",
+    "centres, widths",
     [
-        ([6.0, 6.0, 6.0, 6.0], [-2.0, -2.0, -2.0, -2.0]),  # spread as the white error spreads it
-        ([20.0, 0.5, 0.2, 0.1], [19.0, -3.0, -3.0, -3.0]),  # in one group: little absorbed
-        ([-1.0, 0.5, -0.3, 0.2], [-6.0, -5.0, -4.0, -7.0]),  # the track shape fits: none white
-        ([30.0, 20.0, 25.0, 10.0], [8.0, 4.0, 5.0, 2.0]),  # even all white misses: clipped at 1
+        ([0.3, 0.35, 0.4, 0.3], [0.2, 0.2, 0.3, 0.1]),  # every group best near a third white
+        ([0.0, 0.05, 0.1, 0.0], [0.1, 0.2, 0.2, 0.3]),  # the track shape fits: none white
+        ([0.9, 1.4, 1.2, 2.0], [0.3, 0.3, 0.5, 0.4]),  # even all white falls short: 1
+        ([0.8, 0.0, 0.0, 0.0], [0.2, 0.05, 0.05, 0.05]),  # one group wants it, three do not
     ],
 )
-def test_the_white_share_minimises_the_groups_squared_excess(x_track, x_white):
-    """Oracle: scipy's bounded scalar minimisation of sum_g ((1 - w) X_track + w X_white)^2 over
-    [0, 1]."""
-    xt, xw = np.array(x_track), np.array(x_white)
-    oracle = scipy.optimize.minimize_scalar(
-        lambda w: np.sum(((1 - w) * xt + w * xw) ** 2), bounds=(0.0, 1.0), method="bounded",
-        options={"xatol": 1e-10},
-    ).x  # fmt: skip
-    got = white_share(_goodness(xt), _goodness(xw))
-    assert got == pytest.approx(oracle, abs=1e-6)
+def test_the_white_share_is_the_least_surprising_of_the_grid(centres, widths):
+    """Oracle: scipy's Fisher combination (`scipy.stats.combine_pvalues`) of each group's
+    p-value, p_g(w) = exp(-((w - c_g) / s_g)^2), minimised over the same 21 shares by brute
+    force."""
+    c, s = np.array(centres), np.array(widths)
+
+    def p_at(w):
+        return np.maximum(np.exp(-(((w - c) / s) ** 2)), 1e-300)
+
+    shares = np.linspace(0.0, 1.0, 21)
+    combined = [scipy.stats.combine_pvalues(p_at(w), method="fisher")[0] for w in shares]
+    got = white_share(lambda w: _goodness(p_at(w)))
+    assert got == pytest.approx(shares[int(np.argmin(combined))], abs=1e-12)
     assert 0.0 <= got <= 1.0
+
+
+def test_the_white_share_breaks_ties_towards_the_track_shape():
+    """Every share equally surprising (every p-value at the floor): no white share."""
+    assert white_share(lambda w: _goodness([0.0, 0.0])) == 0.0
 
 
 @pytest.mark.parametrize("white", [0.0, 0.85])

@@ -3,7 +3,8 @@ coordinate and the fit's summary.
 
 - The track records' error (`_track_error.py`) adds its covariance term and its bias, removed
   by simulation-extrapolation from the well-determined element coordinates (`estimate_of`);
-  where such a coordinate's bias is too large to extrapolate, its square joins the variance.
+  where a bias is too large to extrapolate, its square joins the variance on a well-determined
+  coordinate or where it points away from nominal.
 - The covariance of all fitted coordinates (nuisance included, so the intervals carry the
   nuisance's uncertainty) by the options' covariance rule with the noise model's sigma^2, in the
   coordinates p / p_nominal (`bogie_jax.cost.relative_to_nominal`), plus the records' term and,
@@ -70,9 +71,13 @@ def estimate_of(space: FitSpace, fit: HostFit, track_effect, n_log: int) -> Esti
     where it and the records' first-order spread are both under `SIMEX_MAX_SPREAD` and its
     Monte Carlo variance is known (two refit pairs or more): a
     second-order bias extrapolated from a few Gauss-Newton steps is trusted only there (in ln p
-    the steps' own error grows with the spread squared). Where the spread is under it but the
-    bias is not, the bias is kept and marked `bias_as_variance` (its square joins the variance,
-    `_track_covariance`). Nuisance coordinates keep their fitted values."""
+    the steps' own error grows with the spread squared). A bias too large to remove is kept and
+    marked `bias_as_variance` (its square joins the variance, `_track_covariance`) where the
+    spread is under that limit or the bias points away from nominal (the fit's estimate lies
+    beyond the corrected one, seen from nominal: the side of a false alarm); a large bias
+    towards nominal on a poorly determined coordinate (a failed damper's, estimated near zero)
+    only makes the fitted estimate the cautious one. Nuisance coordinates keep their fitted
+    values."""
     phi, use = fit.phi, np.zeros(fit.phi.size, dtype=bool)
     large = use.copy()
     if track_effect is not None:
@@ -80,7 +85,8 @@ def estimate_of(space: FitSpace, fit: HostFit, track_effect, n_log: int) -> Esti
         spread = np.sqrt(np.maximum(np.diag(track_effect.covariance), 0.0))
         small = np.isfinite(bias) & (np.abs(bias) < SIMEX_MAX_SPREAD)
         use = small & (spread < SIMEX_MAX_SPREAD) & np.isfinite(track_effect.bias_variance)
-        large = np.isfinite(bias) & ~small & (spread < SIMEX_MAX_SPREAD)
+        away = bias * fit.phi > 0  # removing it would move the estimate towards nominal
+        large = np.isfinite(bias) & ~small & ((spread < SIMEX_MAX_SPREAD) | away)
         use[n_log:], large[n_log:] = False, False
         phi = fit.phi - np.where(use, bias, 0.0)
     return Estimate(fit, phi, use, track_effect, space.matrix() @ phi, large)

@@ -17,11 +17,14 @@ different misfits, so the data choose between them:
   independent, with the stated RMS in all. Every quantity of the term is of second order in
   the error, so each mixes linearly in w: the covariance, the bias (SIMEX: second order), the
   misfit and each draw's misfit power (`mixed_effect`);
-- w minimises the sum over run-groups of the squared excess of the goodness statistic over its
-  null mean, `(1 - w) X_track + w X_white` per group (least squares in one unknown, clipped to
-  [0, 1]): a misfit spread over the groups as the white error spreads it is absorbed, one that
-  sits in a few groups (a failed element the fit does not judge) is not, and its groups still
-  fail the test that follows with the mixed term.
+- w is the share, in steps of 0.05 from 0 to 1, under which the goodness-of-fit tests of every
+  run-group are least surprised together (Fisher's combined statistic of their p-values, each
+  test with its own null spread and the noise level it estimates given the term): a misfit
+  spread over the groups as the white error spreads it is absorbed, one that sits in a few
+  groups (a failed element the fit does not judge) is not, and its groups still fail the test
+  that follows with the mixed term. (The share cannot be read off the statistics' excess over
+  their null means linearly: each test's noise level, estimated from the high band less the
+  draws' share there, moves with the term.)
 
 The shape is one number fitted to the statistics the test then uses, so the test is slightly
 liberal for it; the verdicts carry the mixed term's covariance and, where its bias is too large
@@ -38,23 +41,24 @@ from ._track_error import TrackErrorEffect
 RECORD_BAND = (3.0, 70.0)  # [m]: EN 13848-1:2019, wavelength ranges D1 (3-25 m) and D2 (25-70 m)
 
 
-def white_share(track, white) -> float:
-    """The share w in [0, 1] of the white error's variance (module docstring) from the goodness
-    of fit (`GoodnessOfFit`) with the `track`-shaped and with the `white` error's term: the
-    least-squares root of the run-groups' excess of the statistic over its null mean."""
-    x_track, x_white = _excess(track), _excess(white)
-    if x_track.shape != x_white.shape or not x_track.size:
-        return 0.0
-    slope = x_track - x_white
-    denominator = float(np.sum(slope**2))
-    if not denominator > 0.0:
-        return 0.0
-    return float(np.clip(np.sum(x_track * slope) / denominator, 0.0, 1.0))
+SHARES = np.linspace(0.0, 1.0, 21)  # the white shares tried (module docstring)
+P_FLOOR = 1e-300  # a p-value below this counts as this in the combined statistic
 
 
-def _excess(goodness) -> np.ndarray:
-    """Each run-group test's statistic less its null mean."""
-    return np.array([t.statistic - t.expected for t in goodness.tests], dtype=float)
+def white_share(goodness_at, shares=SHARES) -> float:
+    """The white share w among `shares` (module docstring) under which the run-group tests are
+    least surprised together: the smallest of Fisher's combined statistic -2 sum_g ln p_g
+    (Fisher, *Statistical Methods for Research Workers*, 1925, sec. 21.1), `goodness_at(w)`
+    giving the `GoodnessOfFit` with the term of that share; the smallest share at a tie."""
+    combined = [_fisher(goodness_at(float(w))) for w in shares]
+    return float(shares[int(np.argmin(combined))])
+
+
+def _fisher(goodness) -> float:
+    """Fisher's combined statistic of a fit's run-group tests; inf where none is finite."""
+    p = np.array([t.p_value for t in goodness.tests], dtype=float)
+    p = p[np.isfinite(p)]
+    return float(-2.0 * np.sum(np.log(np.maximum(p, P_FLOOR)))) if p.size else np.inf
 
 
 def mixed_effect(track: TrackErrorEffect, white: TrackErrorEffect, w: float) -> TrackErrorEffect:
@@ -88,13 +92,10 @@ def record_term(space, fit, say) -> TrackErrorEffect | None:
     draws or the fit explains the data with it; else mixed with the term of an error white over
     `RECORD_BAND`, its white share in `white_share`."""
     track = track_record_term(space, fit, say)
-    if track is None or not track.draws:
-        return track
-    goodness = fit_goodness(space, fit, track)
-    if goodness.explained:
+    if track is None or not track.draws or fit_goodness(space, fit, track).explained:
         return track
     say("the data are not explained with a track-shaped record error: trying a white one")
     white = track_record_term(space, fit, say, band=RECORD_BAND)
-    w = white_share(goodness, fit_goodness(space, fit, white))
+    w = white_share(lambda share: fit_goodness(space, fit, mixed_effect(track, white, share)))
     say(f"record error: {100 * w:.0f} % of its variance white over the recording band")
     return mixed_effect(track, white, w)
