@@ -120,7 +120,7 @@ class Statistics:
 
 def _track_covariance(estimate: Estimate, scale) -> np.ndarray:
     """The records' term in reported units, with the Monte Carlo variance of a removed bias and
-    the square of a bias too large to remove from a well-determined coordinate (`estimate_of`)."""
+    the square of a bias kept as uncertainty (`Estimate.bias_as_variance`, `estimate_of`)."""
     effect = estimate.track_effect
     if effect is None:
         return np.zeros((scale.size, scale.size))
