@@ -94,7 +94,7 @@ def monitor(
     timings["fit_s"] = time.perf_counter() - t0
     weights = member_weights(done.space, coords, done.fit)
     t0 = time.perf_counter()
-    effect = record_term(done.space, done.fit, say, len(coords) + len(problem.nuisance))
+    effect = record_term(done.space, done.fit, say)
     if effect is not None:
         timings["track_error_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -229,8 +229,7 @@ def fit_summary(space: FitSpace, judged: "_Judged | None") -> FitSummary:
         nuisance=fitted_nuisance(space, stats, len(judged.coords)),
         track_error_draws=0 if effect is None else effect.draws, horizons=fit_stages(space.program),
         misfit_ratio=misfit_ratio(space, judged),
-        track_error_white_share=0.0 if effect is None else effect.white_share,
-        track_error_linear=True if effect is None else effect.linear, **common,
+        track_error_white_share=0.0 if effect is None else effect.white_share, **common,
     )  # fmt: skip
 
 

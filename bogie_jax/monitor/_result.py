@@ -87,8 +87,7 @@ class FitSummary:
     the fit explains the data as well as those errors allow; NaN without a `track_error`);
     `track_error_white_share`: the share of the records' error variance taken as white over
     the recording band rather than shaped like the track (`_record_shape.py`; 0 where the fit
-    explains the data with the track-shaped error); `track_error_linear`: False where that
-    error biases an estimate beyond first order, so its misfit is not taken as explained."""
+    explains the data with the track-shaped error; the data are not taken as explained by it)."""
 
     names: tuple[str, ...]
     status: str
@@ -114,7 +113,6 @@ class FitSummary:
     horizons: tuple[float, ...] = ()
     misfit_ratio: float = float("nan")
     track_error_white_share: float = 0.0
-    track_error_linear: bool = True
 
     @property
     def explains_data(self) -> bool:
@@ -214,10 +212,9 @@ class MonitorResult:
         if self.fit.track_error_white_share > 0:
             rows.append(
                 f"track records' error: {100 * self.fit.track_error_white_share:.0f} % of its "
-                "variance white over the recording band (the data call for it)"
-                + ("" if self.fit.track_error_linear else "; it biases the estimates beyond "
-                   "first order, so the misfit is not taken as explained by it")
-            )  # fmt: skip
+                "variance white over the recording band, in the standard errors (the misfit calls "
+                "for it; the data are not taken as explained by it)"
+            )
         warning = misfit_warning(self.fit.misfit_ratio)
         if warning:
             rows.append(warning)

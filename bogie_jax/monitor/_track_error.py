@@ -150,7 +150,6 @@ class TrackErrorEffect(NamedTuple):
     misfits: np.ndarray  # (draws, m): each draw's (I - J J^+) dr, in the fit's weighted rows
     bias_variance: np.ndarray  # (n,): the Monte Carlo variance of `bias` (inf: one pair)
     white_share: float = 0.0  # of the error's variance white over a band (`_record_shape.py`)
-    linear: bool = True  # False: its bias beyond first order, its misfit not counted as explained
 
 
 def _finite(*arrays) -> bool:
