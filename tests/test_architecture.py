@@ -31,6 +31,7 @@ LAYERS = {
     "track": 1,
     "model": 2,
     "simulation": 3,
+    "hunting": 3.5,  # the nonlinear critical speed: a speed ramp-down of simulations
     "measure": 4,
     "cost": 5,
     "gradients": 6,
