@@ -18,8 +18,9 @@ is at least `min_amplitude` and it decays by less than `decay_tolerance` per sec
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-from ._validation import check_range
+from ._validation import check_positive_int, check_range
 from .model import dof_index
 from .params import BogieParams, ModelOptions
 from .simulation import simulate
@@ -63,6 +64,39 @@ class RampDown(eqx.Module):
         return float("nan"), float("nan")
 
 
+def hunting_options(params: BogieParams) -> ModelOptions:
+    """The nonlinear model a hunting cycle needs: saturated creep forces (Shen-Hedrick-Elkins),
+    blow-off anti-yaw dampers, and flange springs on the cone (a profile table holds the flange
+    in its geometry)."""
+    return ModelOptions(
+        creep_saturation=True,
+        nonlinear_dampers=True,
+        flange_contact=params.contact_geometry == "cone",
+    )
+
+
+def ramp_from_linear(
+    params: BogieParams,
+    linear_speed: float | None,
+    *,
+    above: float = 6.0,
+    count: int = 81,
+    step: float = 0.5,
+    top: float = 150.0,
+    **ramp_options,
+) -> RampDown:
+    """`ramp_down` over `count` speeds in `step` [m/s] steps from `above` [m/s] over the linear
+    critical speed `linear_speed` [m/s] (`bogie_jax.model.critical_speed`), or from `top` [m/s]
+    where it is None (stable up to `top`); speeds below 1 m/s are dropped. `ramp_options`: the
+    other arguments of `ramp_down`."""
+    check_positive_int("count", count, 10_000, lo=2)
+    check_range("step", step, 0.0, 50.0, "m/s", open_lo=True)
+    check_range("top", top, 0.0, 150.0, "m/s", open_lo=True)
+    start = top if linear_speed is None else min(float(linear_speed) + above, top)
+    speeds = start - step * np.arange(count)
+    return ramp_down(params, speeds[speeds >= 1.0], **ramp_options)
+
+
 def ramp_down(
     params: BogieParams,
     speeds,
@@ -73,7 +107,7 @@ def ramp_down(
     kick: float = 5e-3,
     min_amplitude: float = 0.1e-3,
     decay_tolerance: float = 0.02,
-    options: ModelOptions = ModelOptions(creep_saturation=True),
+    options: ModelOptions | None = None,
 ) -> RampDown:
     """Lower the speed through `speeds` from a hunting motion and record the limit cycle.
 
@@ -90,7 +124,7 @@ def ramp_down(
     - `min_amplitude` [m]: the smallest amplitude counted as a cycle, > 0.
     - `decay_tolerance` [-]: the largest decay per second of a cycle still counted alive, in
       [0, 0.5).
-    - `options`: `ModelOptions` (default: saturated creep forces, Shen-Hedrick-Elkins).
+    - `options`: `ModelOptions` (default `hunting_options(params)`).
 
     **Returns:** a `RampDown`; `.dies_between()` brackets the nonlinear critical speed.
 
@@ -107,6 +141,7 @@ def ramp_down(
     check_range("kick", kick, 0.0, 0.02, "m", open_lo=True)
     check_range("min_amplitude", min_amplitude, 0.0, 0.05, "m", open_lo=True)
     check_range("decay_tolerance", decay_tolerance, 0.0, 0.5, open_hi=True)
+    options = hunting_options(params) if options is None else options
     y0 = jnp.zeros(20).at[6:8].set(kick).at[10 + LEADING_LATERAL].set(10.0 * kick)
     amplitude, growth, successful = _ramp(
         params, speeds, y0, dwell=dwell, settle=settle, sample_rate=sample_rate, options=options

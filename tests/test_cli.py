@@ -56,6 +56,10 @@ def test_simulate_writes_npz_csv_and_plot(tmp_path, capsys):
         (["simulate", "--out", "run.txt"], "`--out` must end in .npz or .csv"),
         (["simulate", "--speed", "fast"], "invalid float value: 'fast'"),
         (["critical-speed", "--v-min", "90", "--v-max", "20"], "need 0 < `--v-min` < `--v-max`"),
+        (
+            ["critical-speed", "--params", "crh380a", "--contact", "s1002-uic60"],
+            "`--contact s1002-uic60` needs `--params manchester`",
+        ),
         (["simulate", "--params", "tgv"], "invalid choice: 'tgv'"),
     ],
 )
@@ -146,3 +150,15 @@ def test_bad_value_in_a_fresh_process_is_one_line_and_exit_2():
     assert run.returncode == 2
     message = "bogie-jax identify: error: `--starts` must be in [1, 100000], got 0"
     assert run.stderr.strip() == message
+
+
+@pytest.mark.heavy
+def test_critical_speed_ramp_down_on_the_s1002_table(capsys):
+    """Supercritical on S1002/UIC60 1:40 (docs/contact.md, tests/test_hunting.py): the cycle the
+    ramp-down reports dying must die within a few m/s of the linear critical speed it prints."""
+    assert main(["critical-speed", "--contact", "s1002-uic60", "--ramp-down"]) == 0
+    out = capsys.readouterr().out
+    linear = float(out.split("linear critical speed: ")[1].split(" m/s")[0])
+    lower, upper = (float(x) for x in out.split("dies between ")[1].split(" m/s")[0].split(" and "))
+    assert upper - lower == pytest.approx(0.5)
+    assert abs(upper - linear) < 4.0

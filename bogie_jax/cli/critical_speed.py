@@ -1,7 +1,11 @@
-"""`bogie-jax critical-speed`: the linear critical speed and hunting frequency of a bogie."""
+"""`bogie-jax critical-speed`: the linear critical speed and hunting frequency of a bogie, and
+where a hunting limit cycle dies on a speed ramp-down (the nonlinear critical speed)."""
+
+import math
 
 import jax.numpy as jnp
 
+from ..hunting import ramp_from_linear
 from ..model import critical_speed, stability_sweep
 from ..params import PARAMETER_SETS
 from ..plot import plot_stability
@@ -15,6 +19,19 @@ def add_parser(sub):
     p.add_argument("--v-min", type=float, default=5.0, help="lowest speed swept [m/s]")
     p.add_argument("--v-max", type=float, default=150.0, help="highest speed swept [m/s]")
     p.add_argument("--plot", default=None, help="write max Re(eigenvalue) vs speed to this PNG")
+    p.add_argument(
+        "--contact",
+        default="cone",
+        choices=("cone", "s1002-uic60", "worn-uic60"),
+        help="wheel-rail contact of the manchester set (default cone 1:20; s1002-uic60: S1002 "
+        "on UIC60 1:40; worn-uic60: a measured worn wheel on it)",
+    )
+    p.add_argument(
+        "--ramp-down",
+        action="store_true",
+        help="also lower the speed from a hunting limit cycle (saturated creep) in 0.5 m/s steps "
+        "and say where it dies: the nonlinear critical speed (a few minutes)",
+    )
     return p
 
 
@@ -24,7 +41,13 @@ def run(args, progress) -> int:
             f"need 0 < `--v-min` < `--v-max` <= 300 m/s, got {args.v_min:g} and {args.v_max:g}"
         )
     require_suffix("--plot", args.plot, ".png")
-    params = PARAMETER_SETS[args.params]()
+    if args.contact != "cone" and args.params != "manchester":
+        raise UsageError(f"`--contact {args.contact}` needs `--params manchester`")
+    params = (
+        PARAMETER_SETS[args.params](contact=args.contact)
+        if args.params == "manchester"
+        else PARAMETER_SETS[args.params]()
+    )
     progress.compiling("the stability sweep")
     result = critical_speed(params, v_min=args.v_min, v_max=args.v_max)
     if bool(result.found):
@@ -36,8 +59,26 @@ def run(args, progress) -> int:
         progress.say(
             f"stable over the whole range {args.v_min:g}-{args.v_max:g} m/s: no critical speed"
         )
+    if args.ramp_down:
+        progress.compiling("the speed ramp-down")
+        _say_ramp(progress, params, float(result.speed) if bool(result.found) else None)
     if args.plot:
         sweep = stability_sweep(params, jnp.linspace(args.v_min, args.v_max, 60))
         plot_stability(sweep, result).figure.savefig(args.plot, dpi=120)
         progress.say(f"wrote {args.plot}")
     return 0
+
+
+def _say_ramp(progress, params, linear_speed) -> None:
+    ramp = ramp_from_linear(params, linear_speed)
+    lower, upper = ramp.dies_between()
+    if math.isnan(lower):
+        progress.say(
+            f"speed ramp-down from {float(ramp.speeds[0]):.1f} m/s: no hunting cycle died on the"
+            f" ramp (down to {float(ramp.speeds[-1]):.1f} m/s)"
+        )
+    else:
+        progress.say(
+            f"a hunting limit cycle (saturated creep) dies between {lower:.1f} and {upper:.1f} "
+            f"m/s: the nonlinear critical speed"
+        )
