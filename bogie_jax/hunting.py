@@ -1,11 +1,12 @@
 """The nonlinear critical speed: a speed ramp-down from a hunting limit cycle.
 
 A bogie set hunting above its critical speed keeps a limit cycle when the speed is lowered
-slowly, down to the speed at which the cycle dies; with saturated creep forces and a profile
-contact that speed lies at or below the linear critical speed (`bogie_jax.model.critical_speed`)
-and is the one that matters in service (Knothe and Boehm, "History of stability of railway and
-road vehicles", Vehicle System Dynamics 31, 1999; Polach, "On non-linear methods of bifurcation
-analyses in railway vehicle dynamics", Vehicle System Dynamics 44 sup1, 2006: the ramp method).
+slowly, down to the speed at which the cycle dies: at the linear critical speed
+(`bogie_jax.model.critical_speed`) where the bifurcation is supercritical, below it where it is
+subcritical, and the speed that matters in service (Knothe and Boehm, "History of stability of
+railway and road vehicles", Vehicle System Dynamics 31, 1999; Polach, "On non-linear methods of
+bifurcation analyses in railway vehicle dynamics", Vehicle System Dynamics 44 sup1, 2006: the
+ramp method).
 
 The ramp here is quasi-static: one run of `dwell` seconds at each speed of a descending list on
 an ideal track, each run starting from the last state of the one before, the first from a
@@ -117,7 +118,7 @@ def ramp_down(
     - `dwell` [s]: duration of the run at each speed, >= 2 (static; the cycle's transient after
       a speed step must decay within it: 6-12 s near the bifurcation).
     - `settle` [s]: a first run at `speeds[0]` from the kick, before the ramp, in which the
-      hunting motion grows into its cycle, in [0, 600] (static; 0: none).
+      hunting motion grows into its cycle, in [0, 600] (static; 0: none; at least 2 s if any).
     - `sample_rate` [Hz]: output rate of each run (static), in [20, 1000].
     - `kick` [m]: lateral displacement of both wheelsets at the start (with a lateral velocity
       of 10 `kick` per second on the leading one), in (0, 0.02].
