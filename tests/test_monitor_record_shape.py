@@ -16,6 +16,7 @@ from bogie_jax.monitor import (
     RecordError,
     Sampling,
     mixed_effect,
+    mixed_record_term,
     track_error_effect,
     white_share,
 )
@@ -108,6 +109,11 @@ def test_the_mixed_term_is_the_term_of_the_mixed_error():
     mean_power = np.mean(np.sum(mixed.misfits**2, axis=1))
     assert mean_power == pytest.approx(mixed.misfit_ss, rel=1e-9)
     assert mixed.white_share == w
+    # the term `record_term` returns keeps the track-shaped misfits (the data stay not
+    # explained); the misfit scale reads the mixture's
+    kept = mixed._replace(misfits=shaped.misfits, mixed_misfits=mixed.misfits)
+    np.testing.assert_array_equal(mixed_record_term(kept).misfits, mixed.misfits)
+    assert mixed_record_term(shaped) is shaped
     assert mixed_effect(shaped, white, 0.0) is shaped
     assert mixed_effect(shaped, white, 1.0).white_share == 1.0
 

@@ -96,6 +96,7 @@ from ._profile import ProfilePoint as ProfilePoint, profile_point as profile_poi
 from ._record_shape import (
     RECORD_BAND as RECORD_BAND,
     mixed_effect as mixed_effect,
+    mixed_record_term as mixed_record_term,
     white_share as white_share,
 )
 from ._result import (

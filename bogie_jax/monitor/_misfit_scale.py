@@ -13,7 +13,8 @@ power of run-group g by rho_g multiplies the estimate's variance by
 
     rho_j = sum_g rho_g s_jg,   s_jg = sum over g's rows of a_j^2 / |a_j|^2,
 
-with rho_g = max(1, `Misfit.ratio`) of every run-group tested and 1 for the rows of none. The
+with rho_g = max(1, `Misfit.ratio`) of every run-group tested (with the records' term of the
+shape the data chose, `_record_shape.mixed_record_term`) and 1 for the rows of none. The
 standard error becomes max(se, sqrt(rho_j) se_0), se_0 the standard error without the model
 discrepancy's term (`_discrepancy.py`, which estimates the same misfit's stationary part:
 taking the larger of the two never counts it twice), and the 95 % interval widens by the same

@@ -49,7 +49,7 @@ from ._judgement import (
 from ._nuisance import check_nuisance
 from ._options import MonitorOptions
 from ._program import FitSpace, JointProgram, MonitorProblem
-from ._record_shape import record_term
+from ._record_shape import mixed_record_term, record_term
 from ._result import FitSummary, MonitorResult, RunStatus
 from ._suspects import screen
 
@@ -107,8 +107,9 @@ def monitor(
     goodness = fit_goodness(done.space, done.fit, effect)
     if not goodness.explained:
         t0 = time.perf_counter()
+        left = fit_goodness(done.space, done.fit, mixed_record_term(effect))
         goodness, verdicts = screen(done.space, done.fit, len(coords), verdicts, goodness,
-                                    stats.s2, say)  # fmt: skip
+                                    stats.s2, say, left=left)  # fmt: skip
         timings["suspects_s"] = time.perf_counter() - t0
     judged = _Judged(coords, fits + done.refits, done, estimate, stats, goodness)
     return summarise(done.space, statuses, tuple(verdicts), judged, reasons, timings | _total(tic))

@@ -27,7 +27,10 @@ different misfits, so the data choose between them:
 
 The white share explains the size of the misfit but is not taken as explaining the data: the
 term keeps the track-shaped draws' misfit, so the data stay not explained and an alarm must
-hold under the misfit's scale with the suspects free (`_suspects.py`). Measured on `track-white`
+hold under the misfit's scale with the suspects free (`_suspects.py`). That scale
+(`_misfit_scale.py`) reads the tests of the misfit the mixture leaves (`mixed_record_term`):
+what the white share accounts for widens the intervals once, through the term's covariance,
+not again through the scale. Measured on `track-white`
 with the data counted as explained by the mixture: a white error acts on the estimates beyond
 first order, where the term understates it. At 0.225 mm the extrapolated biases of the primary
 vertical stiffnesses were -0.17 to -0.24 against fitted errors of -0.14 to -0.30; at 0.3 mm a
@@ -97,7 +100,8 @@ def record_term(space, fit, say) -> TrackErrorEffect | None:
     chosen by the misfit (module docstring): the track-shaped term where it is `None`, has no
     draws or the fit explains the data with it; else mixed with the term of an error white over
     `RECORD_BAND` for the covariance and the bias, its white share in `white_share`, with the
-    track-shaped term's misfit (so the data stay not explained)."""
+    track-shaped term's misfit (so the data stay not explained) and the mixture's in
+    `mixed_misfits` (for the misfit scale)."""
     track = track_record_term(space, fit, say)
     if track is None or not track.draws or fit_goodness(space, fit, track).explained:
         return track
@@ -105,4 +109,15 @@ def record_term(space, fit, say) -> TrackErrorEffect | None:
     white = track_record_term(space, fit, say, band=RECORD_BAND)
     w = white_share(lambda share: fit_goodness(space, fit, mixed_effect(track, white, share)))
     say(f"record error: {100 * w:.0f} % of its variance white over the recording band")
-    return mixed_effect(track, white, w)._replace(misfits=track.misfits, misfit_ss=track.misfit_ss)
+    mixed = mixed_effect(track, white, w)
+    return mixed._replace(
+        misfits=track.misfits, misfit_ss=track.misfit_ss, mixed_misfits=mixed.misfits
+    )
+
+
+def mixed_record_term(effect: TrackErrorEffect | None) -> TrackErrorEffect | None:
+    """`effect` with the misfits of its chosen shape (the mixture's where a white share was
+    chosen): the misfit that remains beyond the records' error as the data chose its shape."""
+    if effect is None or effect.mixed_misfits is None:
+        return effect
+    return effect._replace(misfits=effect.mixed_misfits)

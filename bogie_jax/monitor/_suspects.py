@@ -266,14 +266,16 @@ def freed_interval(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
     )  # fmt: skip
 
 
-def screen(space, fit, n_coords: int, verdicts, goodness, s2: float, say):
+def screen(space, fit, n_coords: int, verdicts, goodness, s2: float, say, left=None):
     """The suspects of a fit that does not explain the data, and the verdicts with their
     standard errors scaled for the misfit and the alarms that do not hold with them free
-    withheld (module docstring): `(goodness, verdicts)`."""
+    withheld (module docstring): `(goodness, verdicts)`. `left`: the goodness-of-fit tests of
+    the misfit the records' term leaves with its chosen shape (`_record_shape.py`), which the
+    misfit scale reads; default `goodness`."""
     say("the fit does not explain the data: screening the elements not judged")
     suspects, columns = find_suspects(space, fit, goodness, s2)
     goodness = dataclasses.replace(goodness, suspects=suspects)
-    rho = misfit_scales(space, fit, goodness, n_coords)
+    rho = misfit_scales(space, fit, goodness if left is None else left, n_coords)
     out = [scaled_for_misfit(v, x) for v, x in zip(verdicts[:n_coords], rho)]
     out += list(verdicts[n_coords:])
     free = None

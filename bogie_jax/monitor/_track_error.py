@@ -150,6 +150,8 @@ class TrackErrorEffect(NamedTuple):
     misfits: np.ndarray  # (draws, m): each draw's (I - J J^+) dr, in the fit's weighted rows
     bias_variance: np.ndarray  # (n,): the Monte Carlo variance of `bias` (inf: one pair)
     white_share: float = 0.0  # of the error's variance white over a band (`_record_shape.py`)
+    mixed_misfits: np.ndarray | None = None  # (draws, m): the mixed error's, where `misfits`
+    # are the track-shaped draws' (`_record_shape.py`); the misfit scale's tests use them
 
 
 def _finite(*arrays) -> bool:
