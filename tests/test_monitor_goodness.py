@@ -4,6 +4,7 @@ not judged and the withheld alarms (`_suspects.py`), the result's fields and the
 code. Pure numpy: nothing is simulated or compiled."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ from bogie_jax.monitor import (
     judge,
     omitted_elements,
     recheck_alarm,
+    relative_change,
     score_tests,
 )
 from bogie_jax.params import manchester_benchmark
@@ -242,3 +244,11 @@ def test_monitor_data_exits_with_3_where_the_data_are_not_explained(tmp_path, mo
         assert record["explained"] is (code == 0)
         report = (out / "report.md").read_text()
         assert ("DATA NOT EXPLAINED" in report) is (code == 3)
+
+
+def test_a_suspects_change_beyond_exps_range_is_infinite_not_an_error():
+    """A column that barely touches the data asks for a step of hundreds in ln p: its change
+    is reported as inf (or -1), never an OverflowError that would stop the monitor."""
+    assert relative_change(800.0) == math.inf
+    assert relative_change(-800.0) == -1.0
+    assert relative_change(0.1) == pytest.approx(math.expm1(0.1), rel=1e-15)

@@ -112,6 +112,7 @@ from ._suspects import (
     freed_step as freed_step,
     omitted_elements as omitted_elements,
     recheck_alarm as recheck_alarm,
+    relative_change as relative_change,
     score_tests as score_tests,
 )
 from ._track_error import (

@@ -132,6 +132,13 @@ def _explains(space, r, column, step, goodness) -> tuple[str, ...]:
     return tuple(out)
 
 
+def relative_change(step: float) -> float:
+    """exp(`step`) - 1: the relative change of a step `step` in ln p; inf beyond exp's range
+    (a column that barely touches the data asks for an enormous step)."""
+    with np.errstate(over="ignore"):
+        return float(np.expm1(step))
+
+
 def find_suspects(space, fit, goodness, s2: float):
     """`(suspects, their columns (m, k))` ranked by the score statistic (module docstring);
     `((), None)` where nothing can be screened."""
@@ -146,7 +153,7 @@ def find_suspects(space, fit, goodness, s2: float):
     for i in order[:MAX_SUSPECTS]:
         explains = _explains(space, fit.r, outside[:, i], step[i], goodness)
         pv = float(scipy.stats.chi2.sf(lm[i], 1))
-        suspects.append(Suspect(names[i], float(lm[i]), pv, math.expm1(step[i]), explains))
+        suspects.append(Suspect(names[i], float(lm[i]), pv, relative_change(step[i]), explains))
     return tuple(suspects), cols[:, [names.index(s.name) for s in suspects]]
 
 
