@@ -295,7 +295,7 @@ def run_case(cfg: dict, index: int) -> dict:
             inputs["runs"], inputs["tracks"], params=nominal, options=inputs["options"]
         )
         record["monitor_s"] = time.perf_counter() - t0
-    except (RuntimeError, ValueError) as e:
+    except Exception as e:  # a case that fails is recorded and counted, the run goes on
         record.update(error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - tic)
         return record
     record["truth"] = {n: value(truth, n) for n in DEFAULT_CANDIDATES}
