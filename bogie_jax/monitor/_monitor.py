@@ -107,7 +107,8 @@ def monitor(
     goodness = fit_goodness(done.space, done.fit, effect)
     if not goodness.explained:
         t0 = time.perf_counter()
-        left = fit_goodness(done.space, done.fit, mixed_record_term(effect))
+        mixed = mixed_record_term(effect)  # the misfit the chosen shape leaves, if it differs
+        left = None if mixed is effect else fit_goodness(done.space, done.fit, mixed)
         goodness, verdicts = screen(done.space, done.fit, len(coords), verdicts, goodness,
                                     stats.s2, say, left=left)  # fmt: skip
         timings["suspects_s"] = time.perf_counter() - t0
