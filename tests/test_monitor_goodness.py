@@ -3,6 +3,7 @@ group (`bogie_jax/monitor/_goodness.py`) on constructed residuals, the score tes
 not judged and the withheld alarms (`_suspects.py`), the result's fields and the command's exit
 code. Pure numpy: nothing is simulated or compiled."""
 
+import dataclasses
 import json
 import math
 
@@ -149,6 +150,33 @@ def test_the_score_test_finds_the_omitted_column_and_the_alarm_is_withheld():
     assert collinear.evidence["with_suspects_free"]["std_error"] == float("inf")
     kept = recheck_alarm(v, 0, jac, r, others[:, :1])
     assert kept.verdict == "degraded" and "with_suspects_free" in kept.evidence
+
+
+def test_a_profile_decided_alarm_is_rechecked_in_ln_p_when_the_freed_step_is_huge():
+    """A `failed` verdict decided by its profile test, and a suspect column that all but
+    determines the coordinate: the freed step is hundreds in ln p (exp underflows to 0). The
+    recheck scales the statistic by the distances to the limit in ln p, before and after the
+    step, and by the standard errors' ratio: a finite statistic, no error."""
+    rng = np.random.default_rng(9)
+    m = 300
+    jac = rng.normal(size=(m, 1))
+    delta = 1e-4 * rng.normal(size=(m, 1))
+    r = -1e6 * delta[:, 0]
+    step, ratio = freed_step(jac, r, jac + delta, 0)
+    assert step < -745  # exp(step) == 0.0 in double precision
+    band = ToleranceBand.relative(1.0, 0.2)
+    v = judge("a", 1e-3, 1e-4, band, z=decision_z(0.05, 1))
+    assert v.verdict == "failed"
+    decided = [{"limit": band.failed_below, "wald": 1e3,
+                "profile": {"status": "converged", "statistic": 40.0}}]  # fmt: skip
+    v = dataclasses.replace(v, evidence=dict(v.evidence, tests=decided))
+    held = recheck_alarm(v, 0, jac, r, jac + delta)
+    check = held.evidence["with_suspects_free"]
+    assert check["estimate"] == 0.0 and math.isfinite(check["statistic"])
+    distance = math.log(1e-3 / band.failed_below)  # the estimate's, below the limit
+    expected = 40.0 * (distance + step) / distance / math.sqrt(ratio)
+    assert check["statistic"] == pytest.approx(expected, rel=1e-12)
+    assert check["holds"] == (expected > v.evidence["z"])
 
 
 def test_an_interval_with_the_suspect_free_is_that_of_the_fit_with_its_column():

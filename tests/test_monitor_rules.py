@@ -151,6 +151,8 @@ def test_intervals_with_a_monte_carlo_variance_cover_95_percent():
     assert covered_z < 0.94, covered_z  # the normal quantile's shortfall the t one removes
     assert satterthwaite_dof((1.0, 0.0), (math.inf, 16)) == math.inf
     assert satterthwaite_dof((0.0, 2.0), (math.inf, 16)) == pytest.approx(16.0)
+    # an unbounded variance (a rank-deficient fit's standard error is inf): no finite dof
+    assert satterthwaite_dof((math.inf, 0.0, 0.0), (5181, math.inf, math.inf)) == math.inf
 
 
 def test_the_95_percent_interval_uses_the_standard_errors_degrees_of_freedom():

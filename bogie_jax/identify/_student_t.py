@@ -92,6 +92,8 @@ def satterthwaite_dof(variances, dofs) -> float:
     if not all(float(d) > 0 for d in dofs):
         raise ValueError(f"`dofs` = {tuple(dofs)!r} must all be > 0")
     v = [float(x) for x in variances]
-    terms = sum(x * x / float(d) for x, d in zip(v, dofs) if x > 0 and not math.isinf(float(d)))
     total = sum(v)
-    return total * total / terms if terms > 0 and total > 0 else math.inf
+    if not (math.isfinite(total) and total > 0):
+        return math.inf
+    terms = sum(x * x / float(d) for x, d in zip(v, dofs) if x > 0 and not math.isinf(float(d)))
+    return total * total / terms if terms > 0 else math.inf

@@ -218,9 +218,10 @@ def recheck_alarm(verdict: Verdict, index: int, jac, r, columns) -> Verdict:
     limit, statistic, by_profile = decisive_test(verdict)
     if not (math.isfinite(estimate) and math.isfinite(se) and math.isfinite(statistic)):
         again = -math.inf
-    elif by_profile:
+    elif by_profile and verdict.estimate > 0 and limit > 0 and verdict.estimate != limit:
+        # in ln p: the freed estimate may underflow to 0 where its step is hundreds
         distance = math.log(verdict.estimate / limit)
-        again = statistic * math.log(estimate / limit) / distance / math.sqrt(ratio) / misfit
+        again = statistic * (distance + step) / distance / math.sqrt(ratio) / misfit
     else:
         again = (estimate - limit) / se * math.copysign(1.0, verdict.estimate - limit)
     holds = bool(again > verdict.evidence["z"])
