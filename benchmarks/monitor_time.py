@@ -73,7 +73,8 @@ def one_case(index: int, cache: str, calls: int, duration: float = 8.0) -> None:
         seed=0, imperfections=detection.parse_imperfections("default"), duration=duration,
         sample_rate=100.0, speed_range=(30.0, 60.0), noise_range=(0.01, 0.03),
         track_spectrum="erri-low", track_noise=0.3, max_offset=0.5, max_speed_error=0.01,
-        bias=0.05, max_wear=0.3, false_alarm_rate=0.05, track_error=0.3,
+        bias=0.05, max_wear=0.3, false_alarm_rate=0.05, track_error=0.3, nuisance=None,
+        fit_model="linear",
     )  # fmt: skip
     inputs = detection.case_inputs(detection.config_of(args), index)
     for _ in range(calls):

@@ -60,16 +60,17 @@ def _stop_margin(program: JointProgram) -> float:
 def fit_over_horizon(space: FitSpace, say) -> tuple[HostFit, ...]:
     """The fits from the nominal bogie (and stated speeds and positions) over the horizon
     stages, each from the last estimate with the solves stopped past the stage's horizon
-    (`JointProgram.with_horizon`), then of the whole record (`space`'s rows); where the
-    stages end at a point whose whole-record simulation fails, the whole record again from the
-    start. The last fit is the estimate."""
+    (`JointProgram.with_horizon`; J from the looser solves, `with_loose_jacobian`), then of the
+    whole record (`space`'s rows); where the stages end at a point whose whole-record
+    simulation fails, the whole record again from the start. The last fit is the estimate."""
     program, max_steps = space.program, space.program.problem.options.max_steps
     phi = np.zeros(space.n_coords + program.nuisance_layout().n_extra())
     fits, stages = [], fit_stages(program)
     for horizon in stages:
         window = window_rows(_times(program), program.slices, program.problem.n_channels, horizon)
         say(f"fitting the first {horizon:g} s of every run")
-        short = space.with_program(program.with_horizon(horizon + _stop_margin(program)))
+        staged = program.with_horizon(horizon + _stop_margin(program)).with_loose_jacobian()
+        short = space.with_program(staged)
         stage = levenberg_marquardt(
             short.with_window(window).evaluate, phi, max_steps=max_steps,
             offset_tol=STAGE_OFFSET_TOL,

@@ -45,8 +45,9 @@ def track_record_term(space: FitSpace, fit: HostFit, say, band=None) -> TrackErr
         return None
     say(f"track record error {1e3 * o.track_error:.3g} mm: {o.track_error_draws} realisations")
     semi_distance = float(np.asarray(p.params.contact.contact_semi_distance))
+    loose = space.with_program(space.program.with_loose_jacobian())  # `_program.py`
     return track_error_effect(
-        space, p.tracks, fit.phi, RecordError(o.track_error, semi_distance, band),
+        loose, p.tracks, fit.phi, RecordError(o.track_error, semi_distance, band),
         Sampling(o.track_error_draws), references=[m.track for m in p.measurements],
         start=(fit.r, fit.jac),
     )  # fmt: skip

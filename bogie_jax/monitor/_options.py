@@ -21,6 +21,9 @@ from ._horizon import HORIZON_START
 from ._verdict import check_false_alarm_rate
 
 
+JACOBIAN_RTOL = 1e-4  # `MonitorOptions.jacobian_rtol`'s default (`_program.py`)
+
+
 def _names(value) -> tuple[str, ...] | None:
     """`None`, one name, or a sequence of names as a tuple."""
     if value is None or isinstance(value, str):
@@ -53,6 +56,11 @@ class MonitorOptions:
     - `model`, `settings`, `weights`: the objective's `ModelOptions`, `SolveSettings` (a failed
       solve is reported, never raised: `throw=False` is set) and residual weights
       (`bogie_jax.cost.make_objective`).
+    - `jacobian_rtol` in (0, 1), or `None`: the relative tolerance of the solves that give the
+      Jacobian (absolute tolerance scaled alike) where no step is accepted on the residuals'
+      cost: the first Jacobian, the horizon stages and the track records' term
+      (`_program.py`), where `settings` has a `PIDController` with a smaller one. `None`: the
+      settings' own throughout.
     """
 
     candidates: tuple[str, ...] | None = None
@@ -73,6 +81,7 @@ class MonitorOptions:
     model: ModelOptions = dataclasses.field(default_factory=ModelOptions)
     settings: SolveSettings | None = None
     weights: object = None
+    jacobian_rtol: float | None = JACOBIAN_RTOL
 
     def __post_init__(self):
         set_ = lambda name, value: object.__setattr__(self, name, value)
@@ -90,6 +99,8 @@ class MonitorOptions:
         check_number("run_misfit", self.run_misfit, 0.0, math.inf, open_lo=True)
         check_number("track_error", self.track_error, 0.0, math.inf, "m")
         check_positive_int("track_error_draws", self.track_error_draws, lo=2)
+        if self.jacobian_rtol is not None:
+            check_number("jacobian_rtol", self.jacobian_rtol, 0.0, 1.0, open_lo=True, open_hi=True)
         if not isinstance(self.model, ModelOptions):
             raise TypeError(f"`model` must be a ModelOptions, got {type(self.model).__name__}")
         if self.settings is not None and not isinstance(self.settings, SolveSettings):
