@@ -49,7 +49,7 @@ def plot_verdicts(verdicts, *, ax=None, title: str | None = None):
     rows = [_row(v) for v in verdicts]
     if not rows:
         raise ValueError("`verdicts` is empty: nothing to plot")
-    ax = get_axes(ax, (7.5, 0.42 * len(rows) + 1.6))
+    ax = get_axes(ax, (7.5, 0.42 * len(rows) + 2.2))
     y = np.arange(len(rows))[::-1]
     for k, row in zip(y, rows):
         band = row["tolerance_band"]
@@ -82,10 +82,10 @@ def plot_verdicts(verdicts, *, ax=None, title: str | None = None):
     ax.plot([], [], color="k", lw=4, alpha=0.3, label="decision interval (estimate +- z SE)")
     ax.axvline(1.0, color="k", lw=0.6)
     ax.set_yticks(y, [r["name"] for r in rows])
-    ax.set_ylim(y.min() - 0.7, y.max() + 0.7)
+    ax.set_ylim(y.min() - 2.2, y.max() + 0.7)  # below the last row: room for the legend
     ax.set_xlabel("value / band centre (nominal) [-]")
     ax.set_title(title or "verdicts: estimates against tolerance bands")
-    ax.legend(fontsize="small", loc="lower left")
+    ax.legend(fontsize="small", loc="lower center", ncol=2)
     ax.grid(True, axis="x", alpha=0.3)
     return ax
 
