@@ -552,10 +552,11 @@ def test_monitor_continues_over_the_horizon_where_one_fit_misses_the_speed(healt
 
 @pytest.mark.heavy
 def test_a_looser_jacobian_in_the_stages_and_the_records_term_keeps_the_verdicts(yaw_left_50):
-    """The horizon stages and the track records' term with J from solves at rtol 1e-4 (the
-    default `jacobian_rtol`) against J from the residuals' own solves (rtol 1e-6): the same
-    verdicts, estimates within 0.05 of a standard error and standard errors within 2 % (the
-    module's noise-free 0.5 s runs, stages from 0.125 s, a 0.3 mm record error told)."""
+    """The first Jacobian, the horizon stages and the track records' term with J from solves
+    at rtol 1e-4 (the default `jacobian_rtol`) against J from the residuals' own solves (rtol
+    1e-6): the same verdicts, estimates within 0.05 of a standard error and standard errors
+    within 2 % (the module's noise-free 0.5 s runs, stages from 0.125 s, a 0.3 mm record error
+    told)."""
     options = MonitorOptions(horizon_start=0.125, track_error=3e-4)
     results = [
         monitor(yaw_left_50, options=dataclasses.replace(options, jacobian_rtol=rtol))

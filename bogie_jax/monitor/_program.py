@@ -15,11 +15,17 @@ covariance, which an error of order delta in J moves by order delta. Where a ste
 accepted on the residuals' cost, J may come from solves at a looser tolerance than r
 (`with_loose_jacobian`): the first Jacobian, at the nominal bogie (the identifiability rule),
 the horizon stages, whose estimate the whole-record fit refines, and the track records' term
-(its first-order derivatives and its refits' Gauss-Newton steps). r is
-then solved at the settings' tolerance by a program of its own and J at `jacobian_rtol`, the
-two at once on two threads. The whole-record fit and the profile tests keep one tight solve
-for both: with J at rtol 1e-4 a final fit stalled with its steps rejected, 4.6 cost units
-above the optimum (J's speed-factor columns differ by about 1 %, the others by 2e-4).
+(its first-order derivatives and its refits' Gauss-Newton steps). r is then solved at the
+settings' tolerance by a program of its own and J at `jacobian_rtol`, the two at once on two
+threads. The whole-record fit and the profile tests keep one tight solve for both: with J at
+rtol 1e-4 a final fit stalled with its steps rejected, 4.6 cost units above the optimum (J's
+speed-factor columns differ by about 1 %, the others by 2e-4).
+
+`FitSpace` maps the fitted coordinates v to x = B v (`_nuisance.NuisanceLayout.matrix`), keeps
+the rows within the fitted horizon (`_horizon.py`), removes the sensor bias by the projection
+of `bogie_jax.cost.RunChannels.centre` and weights the rows (`rows`): `evaluate(v)` is the (r, J) a
+Levenberg-Marquardt fit of v needs. Both are values: a changed run set, horizon or weighting
+is a new object.
 """
 
 import dataclasses
@@ -188,10 +194,9 @@ class JointProgram:
     def track_derivatives(self, x, errors) -> tuple[np.ndarray, np.ndarray]:
         """r (m,) at x and dr along each of the K record errors `errors` (K lists of one
         `TrackIrregularity` per run: the change of each run's record) (K, m), on the host, both
-        from the solves of `derivative_objective`. A
-        record enters r through its samples and their spline curvatures, both linear in the
-        samples, so dr along e is the forward-mode derivative along (e, e's curvatures): one
-        compiled program for the K directions."""
+        from the solves of `derivative_objective`. A record enters r through its samples and
+        their spline curvatures, both linear in the samples, so dr along e is the forward-mode
+        derivative along (e, e's curvatures): one compiled program for the K directions."""
         if self.warming is not None:
             wait([self.warming])  # its compile, so that it is not done twice
         spec = _track_spec(self.objective)
