@@ -740,7 +740,9 @@ def _s(x):
     return "-" if x is None else f"{x:.0f} s"
 
 
-def main(argv=None):
+def parse_args(argv=None) -> argparse.Namespace:
+    """The command line's arguments, checked (`SystemExit` naming one out of range), with the
+    imperfections, nuisance names, ranges, case count, results stem and shard resolved."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--cases", type=int, default=None, help="cases (default 100; 30 for a mode "
                    "other than default)")  # fmt: skip
@@ -803,6 +805,11 @@ def main(argv=None):
     for name, given, ok in checks:
         if not ok:
             raise SystemExit(f"{name} = {given!r} is out of range")
+    return args
+
+
+def main(argv=None):
+    args = parse_args(argv)
     cfg = config_of(args)
     if not args.report:
         run_cases(args, cfg)

@@ -69,13 +69,8 @@ def one_case(index: int, cache: str, calls: int, duration: float = 8.0) -> None:
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     from bogie_jax.monitor import monitor
 
-    args = argparse.Namespace(
-        seed=0, imperfections=detection.parse_imperfections("default"), duration=duration,
-        sample_rate=100.0, speed_range=(30.0, 60.0), noise_range=(0.01, 0.03),
-        track_spectrum="erri-low", track_noise=0.3, max_offset=0.5, max_speed_error=0.01,
-        bias=0.05, max_wear=0.3, false_alarm_rate=0.05, track_error=0.3, nuisance=None,
-        fit_model="linear",
-    )  # fmt: skip
+    # the detection benchmark's own defaults (seed 0, default imperfections), 0.3 mm told
+    args = detection.parse_args(["--duration", f"{duration}", "--track-error", "0.3"])
     inputs = detection.case_inputs(detection.config_of(args), index)
     for _ in range(calls):
         t0 = time.perf_counter()
