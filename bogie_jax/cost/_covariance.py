@@ -20,6 +20,7 @@ null directions.
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
@@ -87,6 +88,15 @@ def covariance_from_jacobian(
     if not 0.0 <= float(rcond) < 1.0:
         raise ValueError(f"`rcond` = {rcond!r} must lie in [0, 1)")
     n = jac.shape[1]
+    if scale is not None and np.shape(scale) != (n,):
+        raise ValueError(f"`scale` must have shape ({n},), got {np.shape(scale)}")
+    return _covariance(jac, sigma2, float(rcond), scale)
+
+
+@jax.jit
+def _covariance(jac, sigma2, rcond, scale) -> Covariance:
+    """`covariance_from_jacobian` on checked arguments: one compiled program per shape (called
+    on the host, its few dozen operations would each compile on their own)."""
     _, s, vt = jnp.linalg.svd(jac, full_matrices=False)
     order = jnp.argsort(s)  # ascending information
     s, v = s[order], vt.T[:, order]
@@ -101,8 +111,6 @@ def covariance_from_jacobian(
     corr = cov / jnp.outer(unit, unit)
     if scale is not None:
         d = jnp.asarray(scale)
-        if d.shape != (n,):
-            raise ValueError(f"`scale` must have shape ({n},), got {d.shape}")
         cov = cov * jnp.outer(d, d)
         std = std * jnp.abs(d)
         corr = corr * jnp.outer(jnp.sign(d), jnp.sign(d))
@@ -117,6 +125,11 @@ def with_model_error(cov: Covariance, extra) -> Covariance:
     and correlations of the sum. The information fields (eigenvalues, directions, null, rank,
     condition number) are the data's and stay; a parameter with an infinite standard error
     keeps it."""
+    return _with_model_error(cov, extra)
+
+
+@jax.jit
+def _with_model_error(cov: Covariance, extra) -> Covariance:
     total = jnp.asarray(cov.covariance) + jnp.asarray(extra)
     loose = jnp.isinf(cov.std_errors)
     std = jnp.where(loose, jnp.inf, jnp.sqrt(jnp.maximum(jnp.diag(total), 0.0)))
