@@ -9,16 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from bogie_jax.cost import (
-    make_objective,
-    residual_jacobian,
-    residual_tangents,
-    select_parameters,
-    track_part,
-)
+from bogie_jax.cost import make_objective, select_parameters
 from bogie_jax.gradients import compiled_residuals as _residuals, gradient
 from bogie_jax.measure import Measurement, MeasurementError
-from bogie_jax.track import TrackIrregularity
 
 
 try:
@@ -288,44 +281,3 @@ def test_replace_keeps_data_and_changes_solver_settings(objective):
     assert isinstance(other.residual_model.adjoint, dfx.ForwardMode)
     assert other.selection is objective.selection
     assert dataclasses.replace(objective.residual_model).n_residuals == objective.n_residuals
-
-
-# ------------------------------------------------------------------------------- tangents
-def test_residual_tangents_are_central_differences_in_parameters_and_track(objective, theta0):
-    """`residual_tangents` along a parameter direction and along a change of the track record
-    against central differences of the residuals (oracle; the fixed step makes the solve a
-    smooth map): a record change e enters through its samples and spline curvatures, both
-    linear in e. Along the basis of theta with no record change it is `residual_jacobian`'s J;
-    the directions of a batch do not mix (a zero direction gives zero)."""
-    is_track = lambda x: isinstance(x, TrackIrregularity)
-    tracks = [t for t in jax.tree.leaves(objective, is_leaf=is_track) if is_track(t)]
-    assert tracks, "the objective holds its track record"
-    rng = np.random.default_rng(0)
-    change = 1e-4 * rng.standard_normal(np.shape(tracks[0].values))  # [m]
-
-    def with_record(scale, base=1.0):
-        """The objective on the record base * samples + scale * change."""
-        shift = lambda t: TrackIrregularity(t.s0, t.ds, base * t.values + scale * change)
-        return jax.tree.map(lambda x: shift(x) if is_track(x) else x, objective, is_leaf=is_track)
-
-    unit = eqx.filter(with_record(1.0, base=0.0), track_part(objective))
-    zero = jax.tree.map(np.zeros_like, unit)
-    dtracks = jax.tree.map(lambda *leaves: np.stack(leaves), zero, unit, zero)
-    dtheta = np.zeros((3, theta0.size))
-    dtheta[0, 1] = 1.0
-    tangents = eqx.filter_jit(residual_tangents)
-    r, d = (np.asarray(a) for a in tangents(objective, theta0, dtheta, dtracks))
-
-    h = 1e-3  # a relative step in theta (unconstrained), and a scale of the record change
-    step = np.eye(theta0.size)[1] * h
-    fd_theta = (_residuals(objective, theta0 + step) - _residuals(objective, theta0 - step)) / 2 / h
-    plus, minus = (_residuals(with_record(s), theta0) for s in (h, -h))
-    fd_track = (np.asarray(plus) - np.asarray(minus)) / (2 * h)
-    # r from another compiled program: the same to rounding (1e-9 measured, r of order 1)
-    np.testing.assert_allclose(r, np.asarray(_residuals(objective, theta0)), atol=1e-8)
-    for got, want in ((d[0], fd_theta), (d[1], fd_track)):
-        assert np.max(np.abs(want)) > 1e-3  # the direction moves the residuals
-        np.testing.assert_allclose(got, want, atol=1e-6 * np.max(np.abs(want)))
-    np.testing.assert_array_equal(d[2], 0.0)
-    _, jac = residual_jacobian(objective, theta0)
-    np.testing.assert_allclose(d[0], np.asarray(jac)[:, 1], rtol=1e-6, atol=1e-9)

@@ -571,19 +571,6 @@ def test_a_looser_jacobian_in_the_stages_and_the_records_term_keeps_the_verdicts
             assert b.std_error == pytest.approx(a.std_error, rel=0.02), a.name
 
 
-def test_more_record_error_draws_than_fitted_coordinates_are_all_used(yaw_left_50, nominal):
-    """The records' term takes its draws' derivatives from the Jacobian's program, n_x
-    directions a call: 3 n_x + 1 draws (one candidate, so n_x is small) take four calls, and
-    every draw is used (a lost or duplicated chunk would change the count or the term)."""
-    options = MonitorOptions(candidates=("yaw_dampers.left.c",), track_error=3e-4)
-    n_x = 1 + len(default_nuisance(nominal)) + 2 * 2  # + an offset and a speed factor a run
-    draws = 3 * n_x + 1
-    result = monitor(yaw_left_50, options=dataclasses.replace(options, track_error_draws=draws))
-    assert result.fit.track_error_draws == draws
-    (verdict,) = result.verdicts
-    assert verdict.verdict == "degraded" and np.isfinite(verdict.std_error)
-
-
 @pytest.mark.heavy
 def test_monitor_fits_the_cone_slope_of_worn_wheels(nominal):
     """Item 4f: a healthy bogie on worn wheels (cone slope 1.3 times nominal, `worn_wheels`),

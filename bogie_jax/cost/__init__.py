@@ -14,12 +14,7 @@ from ._covariance import (
     score_series as score_series,
     with_model_error as with_model_error,
 )
-from ._jacobian import (
-    forward_mode as forward_mode,
-    residual_jacobian as residual_jacobian,
-    residual_tangents as residual_tangents,
-    track_part as track_part,
-)
+from ._jacobian import forward_mode as forward_mode, residual_jacobian as residual_jacobian
 from ._joint import (
     JointResidualModel as JointResidualModel,
     joint_residual_model as joint_residual_model,

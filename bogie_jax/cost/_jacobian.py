@@ -5,16 +5,11 @@ of `jax.jvp`), which for a measurement (many residuals, few parameters) is far c
 reverse mode (one backward pass per residual). An
 `Objective` is switched to `diffrax.ForwardMode()` here, so callers never switch adjoints by
 hand; `bogie_jax.identify.JacobianResiduals` (the residuals the least-squares solvers
-linearise) materialises the same Jacobian. `residual_tangents` takes the same derivatives along
-any directions in the parameters and the track records (a record's error, for
-`bogie_jax.monitor`).
+linearise) materialises the same Jacobian.
 """
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
-
-from ..track import TrackIrregularity
 
 
 def forward_mode(objective):
@@ -38,34 +33,3 @@ def residual_jacobian(objective, theta, args=None):
     basis = jnp.eye(theta.size, dtype=theta.dtype)
     r, jac_t = jax.vmap(lambda v: jax.jvp(fn, (theta,), (v,)), out_axes=(None, 0))(basis)
     return r, jac_t.T
-
-
-def track_part(objective):
-    """`objective`'s filter spec (`equinox.filter`, `equinox.partition`) selecting the `values`
-    and `curvatures` of its track records (`bogie_jax.track.TrackIrregularity`): what a change
-    of a record changes (both linear in the record's samples)."""
-
-    def mark(node):
-        if not isinstance(node, TrackIrregularity):
-            return False
-        spec = object.__new__(TrackIrregularity)  # a spec, not a track: no __init__
-        for name, on in (("s0", False), ("ds", False), ("values", True), ("curvatures", True)):
-            object.__setattr__(spec, name, on)
-        return spec
-
-    return jax.tree.map(mark, objective, is_leaf=lambda x: isinstance(x, TrackIrregularity))
-
-
-def residual_tangents(objective, theta, dtheta, dtracks, args=None):
-    """`(r, D)`: residuals `r` (m,) at `theta` (n,) and their forward-mode derivatives `D`
-    (K, m) along K directions in (theta, track records): `dtheta` (K, n) and `dtracks`, the
-    track part of `objective` (`track_part`; before or after its switch to forward mode) with
-    a leading axis K (the change of every record along each direction). One solve carries the K tangents; along the basis of theta with
-    zero track changes, `D.T` is `residual_jacobian`'s J. Pure JAX (`eqx.filter_jit` it with
-    the objective as an argument); `objective` as `residual_jacobian` takes it."""
-    objective = forward_mode(objective)
-    tracks, rest = eqx.partition(objective, track_part(objective))
-    fn = lambda th, t: jnp.ravel(eqx.combine(t, rest).residuals(th, args))
-    as_tracks = lambda b: jax.tree.unflatten(jax.tree.structure(tracks), jax.tree.leaves(b))
-    jvp = lambda a, b: jax.jvp(fn, (theta, tracks), (a, as_tracks(b)))
-    return jax.vmap(jvp, out_axes=(None, 0))(jnp.asarray(dtheta), dtracks)

@@ -139,9 +139,12 @@ def prepare(measurements, tracks, params, options) -> MonitorProblem:
 
 def first_jacobian(problem: MonitorProblem, say):
     """Step 2: the program compiled and evaluated at the nominal bogie: the program (the runs
-    whose simulation solved there active), its Jacobian there, each run's reason for being left
+    whose simulation solved there active; with a `track_error`, its track-record derivatives
+    compiling in a thread of their own), its Jacobian there, each run's reason for being left
     out (`""` where used) and the timings. **Raises:** `RuntimeError` if no run solved."""
     program = JointProgram.build(problem)
+    if problem.options.track_error > 0:
+        program = program.warming_up(problem.options.track_error_draws)
     n_x = program.nuisance_layout().n_x
     say(
         f"compiling the joint residual Jacobian ({problem.n_runs} runs, "

@@ -2,16 +2,12 @@
 
 `JointProgram` holds the runs' joint objective (`bogie_jax.cost.make_joint_objective`, forward
 mode, with each run's corrections where fitted) and evaluates its residuals r and their Jacobian
-with respect to x = [ln p of the candidates and nuisance parameters, run corrections], and r's
-derivatives along the track record's error draws (`track_derivatives`, for the records' term).
-Both are one compiled program, `bogie_jax.cost.residual_tangents`: r and its forward-mode
-derivatives along n_x directions in (x, track records), the Jacobian's the basis of x, the
-draws' the record errors (n_x at a time). One
-program serves the Fisher information, every fit and horizon stage, the profile tests, the
-track record's refits and its draws, whatever records, runs or horizon are used: on two 1 s
-runs a second program for the draws cost 7 s of tracing and 28 s of compiling, where the
-zero track directions cost the Jacobian's solves little (`docs/history.md`). All go through the
-program store where the process keeps one (the command line).
+with respect to x = [ln p of the candidates and nuisance parameters, run corrections]
+(`bogie_jax.cost.residual_jacobian`): one compiled program for the Fisher information, every
+fit and horizon stage, the profile tests and the track record's refits, whatever records, runs
+or horizon are used. A second program gives r's derivatives along the track record's error
+draws (`track_derivatives`), for the records' term. All go through the program store where
+the process keeps one (the command line).
 
 **Two tolerances** (`MonitorOptions.jacobian_rtol`). The residuals set the estimate, and its
 cost differences every profile test; the Jacobian sets the Gauss-Newton step and the
@@ -33,7 +29,7 @@ is a new object.
 """
 
 import dataclasses
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 
 import diffrax as dfx
 import equinox as eqx
@@ -41,15 +37,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..cost import RunChannels, make_joint_objective, residual_tangents, track_part
+from ..cost import RunChannels, make_joint_objective, residual_jacobian
 from ..params import BogieParams
 from ..runtime.program_store import stored_program
 from ..runtime.solve_settings import SolveSettings
+from ..track import TrackIrregularity
 from ._nuisance import NuisanceLayout
 from ._options import MonitorOptions
 
 
-_TANGENTS = eqx.filter_jit(residual_tangents)
+_JACOBIAN = eqx.filter_jit(residual_jacobian)
 
 
 @eqx.filter_jit
@@ -70,6 +67,29 @@ def _through_store(name: str, fn, objective, *args):
         return fn(objective, *args)
     call, out_tree = stored
     return jax.tree.unflatten(out_tree, call(*jax.tree.leaves((dynamic, *args))))
+
+
+def _track_spec(objective):
+    """`objective`'s filter spec: True at the `values` and `curvatures` of its track records."""
+
+    def mark(node):
+        if not isinstance(node, TrackIrregularity):
+            return False
+        spec = object.__new__(TrackIrregularity)  # a spec, not a track: no __init__
+        for name, on in (("s0", False), ("ds", False), ("values", True), ("curvatures", True)):
+            object.__setattr__(spec, name, on)
+        return spec
+
+    return jax.tree.map(mark, objective, is_leaf=lambda x: isinstance(x, TrackIrregularity))
+
+
+@eqx.filter_jit
+def _track_derivatives(objective, x, directions):
+    """r (m,) at x and its derivatives (K, m) along the K track-record `directions` (the track
+    part of `objective`'s tree, `_track_spec`, stacked on a leading axis): forward mode."""
+    tracks, rest = eqx.partition(objective, _track_spec(objective))
+    fn = lambda t: jnp.ravel(eqx.combine(t, rest).residuals(x))
+    return jax.vmap(lambda d: jax.jvp(fn, (tracks,), (d,)), out_axes=(None, 0))(directions)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +130,7 @@ class JointProgram:
     problem: MonitorProblem
     objective: object
     active: np.ndarray
+    warming: Future | None = dataclasses.field(default=None, compare=False)
     jacobian_rtol: float | None = None
 
     @classmethod
@@ -158,38 +179,34 @@ class JointProgram:
         (module docstring)."""
         return dataclasses.replace(self, jacobian_rtol=self.problem.options.jacobian_rtol)
 
+    def warming_up(self, draws: int) -> "JointProgram":
+        """This program with `track_derivatives` for `draws` directions compiled in a thread
+        of its own from now on (on another core while the Jacobian's compiles)."""
+        zeros = [
+            [TrackIrregularity(t.s0, t.ds, np.zeros_like(t.values)) for t in self.problem.tracks]
+        ]
+        x = np.zeros(self.nuisance_layout().n_x)
+        pool = ThreadPoolExecutor(1)
+        future = pool.submit(self.track_derivatives, x, zeros * draws)
+        pool.shutdown(wait=False)
+        return dataclasses.replace(self, warming=future)
+
     def track_derivatives(self, x, errors) -> tuple[np.ndarray, np.ndarray]:
         """r (m,) at x and dr along each of the K record errors `errors` (K lists of one
         `TrackIrregularity` per run: the change of each run's record) (K, m), on the host, both
         from the solves of `derivative_objective`. A record enters r through its samples and
         their spline curvatures, both linear in the samples, so dr along e is the forward-mode
-        derivative along (e, e's curvatures): n_x draws a call of the Jacobian's program."""
-        spec = track_part(self.objective)
+        derivative along (e, e's curvatures): one compiled program for the K directions."""
+        if self.warming is not None:
+            wait([self.warming])  # its compile, so that it is not done twice
+        spec = _track_spec(self.objective)
         parts = [eqx.filter(self.on_records(e).objective, spec) for e in errors]
-        n_x = self.nuisance_layout().n_x
-        zero = jax.tree.map(np.zeros_like, parts[0])
-        objective, r, d = self.derivative_objective(), None, []
-        for start in range(0, len(parts), n_x):
-            chunk = parts[start : start + n_x]
-            chunk += [zero] * (n_x - len(chunk))
-            dtracks = jax.tree.map(lambda *leaves: np.stack(leaves), *chunk)
-            r, dr = self._tangents(objective, x, np.zeros((n_x, n_x)), dtracks)
-            d.append(np.asarray(dr))
-        return np.asarray(r), np.concatenate(d)[: len(parts)]
-
-    def _tangents(self, objective, x, dx, dtracks):
-        """`bogie_jax.cost.residual_tangents` of `objective`, through the program store."""
-        return _through_store(
-            "tangents", _TANGENTS, objective, jnp.asarray(x), jnp.asarray(dx), dtracks
-        )
-
-    def _jacobian(self, objective, x):
-        """r (m,) and dr/dx (m, n_x) of `objective` at x: the tangents along x's basis."""
-        n_x = self.nuisance_layout().n_x
-        tracks = eqx.filter(objective, track_part(objective))
-        dtracks = jax.tree.map(lambda leaf: np.zeros((n_x, *np.shape(leaf))), tracks)
-        r, jac_t = self._tangents(objective, x, np.eye(n_x), dtracks)
-        return r, jax.block_until_ready(jac_t).T
+        directions = jax.tree.map(lambda *leaves: jnp.stack(leaves), *parts)
+        r, d = _through_store(
+            "track_derivatives", _track_derivatives, self.derivative_objective(),
+            jnp.asarray(x), directions,
+        )  # fmt: skip
+        return np.asarray(r), np.asarray(d)
 
     @property
     def slices(self) -> tuple:
@@ -209,12 +226,13 @@ class JointProgram:
         x = jnp.asarray(x)
         loose = self.derivative_objective()
         if loose is self.objective:  # one solve gives both
-            r, jac = self._jacobian(self.objective, x)
-            return np.asarray(r), np.asarray(jac)
+            r, jac = _through_store("residual_jacobian", _JACOBIAN, self.objective, x)
+            return np.asarray(r), np.asarray(jax.block_until_ready(jac))
         with ThreadPoolExecutor(1) as pool:
             residuals = pool.submit(self._residuals_now, x)
-            _, jac = self._jacobian(loose, x)
-            return residuals.result(), np.asarray(jac)
+            _, jac = _through_store("residual_jacobian", _JACOBIAN, loose, x)
+            jac = np.asarray(jax.block_until_ready(jac))
+            return residuals.result(), jac
 
     def _residuals_now(self, x) -> np.ndarray:
         r = _through_store("residuals", _residuals, self.objective, x)
