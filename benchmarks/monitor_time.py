@@ -16,7 +16,8 @@ benchmark's alone; `monitor` runs its track-record refits in one thread per core
   checked out into a temporary worktree) on the same case, in memory (its second call), so the
   speed-up is a ratio of two figures measured in this run with compile time apart.
 Each process prints `monitor`'s own `timings` (first Jacobian, fit, track-record term, verdicts,
-total) and the process's wall time around the call.
+total), the process's wall time around the call and the persistent cache's hits and misses
+during it (a miss is a program XLA compiled: none in a warm process).
 
 Run (from the repository root):
     python benchmarks/monitor_time.py                        # 5 cases, baseline on 3
@@ -58,8 +59,11 @@ def one_case(index: int, cache: str, calls: int, duration: float = 8.0) -> None:
     os.environ.setdefault("EQX_ON_ERROR", "nan")
     detection = _detection()  # sets its own cache folder: replaced below
     import jax
+    from jax import monitoring
 
     jax.config.update("jax_enable_x64", True)
+    events = []  # the persistent cache's hits and misses (a miss: a program XLA compiled)
+    monitoring.register_event_listener(lambda name, **kw: events.append(name))
     try:
         from bogie_jax import use_compilation_cache
 
@@ -73,13 +77,15 @@ def one_case(index: int, cache: str, calls: int, duration: float = 8.0) -> None:
     args = detection.parse_args(["--duration", f"{duration}", "--track-error", "0.3"])
     inputs = detection.case_inputs(detection.config_of(args), index)
     for _ in range(calls):
+        events.clear()
         t0 = time.perf_counter()
         result = monitor(
             inputs["runs"], inputs["tracks"], params=inputs["nominal"], options=inputs["options"]
         )
         wall = time.perf_counter() - t0
         verdicts = {v.name: [v.verdict, v.estimate, v.std_error] for v in result.verdicts}
-        line = {"timings": dict(result.timings), "wall_s": wall, "verdicts": verdicts}
+        cache = {k: events.count(f"/jax/compilation_cache/cache_{k}") for k in ("hits", "misses")}
+        line = {"timings": dict(result.timings), "wall_s": wall, "verdicts": verdicts, **cache}
         print("RESULT " + json.dumps(line), flush=True)
 
 
@@ -190,6 +196,15 @@ def markdown(records, baseline: str | None) -> str:
         f"Compile (cold minus in memory): {compile_s:.1f} s; what a warm process still pays "
         f"(tracing, cache reads): {warm_compile:.1f} s.",
     ]
+    warm = [r["warm"] for r in records if "misses" in r.get("warm", {})]
+    if warm:
+        misses = sum(w["misses"] for w in warm)
+        lines += [
+            "",
+            f"Programs the warm processes compiled (persistent-cache misses): {misses}, against "
+            f"{sum(w['hits'] for w in warm)} read from the cache ({len(warm)} processes; the cold "
+            f"ones: {sum(r['cold']['misses'] for r in records)} compiled).",
+        ]
     paired = [r for r in records if "baseline" in r]
     if paired:
         ratio = statistics.median(

@@ -854,6 +854,51 @@ def test_demo_report_embeds_the_figures(demo):
     assert len(report.splitlines()) < 80  # one page
 
 
+_COUNTING_COMMAND = """
+import json, sys
+from jax import monitoring
+
+events = []
+monitoring.register_event_listener(lambda name, **kw: events.append(name))
+from bogie_jax.cli import main
+
+code = main(sys.argv[1:])
+count = lambda what: events.count(f"/jax/compilation_cache/{what}")
+print(json.dumps({"code": code, "hits": count("cache_hits"), "misses": count("cache_misses")}))
+"""
+
+
+@pytest.mark.heavy  # a first process compiles every program of `monitor` (about 1 min)
+def test_a_second_monitor_process_on_data_of_the_same_shapes_compiles_nothing(demo, tmp_path):
+    """`bogie-jax monitor --data` on the demo's files in two fresh processes sharing a cache
+    directory (`BOGIE_JAX_CACHE_DIR`): the first compiles, the second finds every program in
+    the persistent cache (no cache miss: XLA compiles nothing; the program store spares it the
+    big programs' tracing) and gives the same verdicts."""
+    import os
+    import subprocess
+    import sys
+
+    _, out, _ = demo
+    data = out / "data"
+    argv = ["monitor", "--data", *(str(data / f"run{k}.csv") for k in range(2))]
+    argv += ["--track", *(str(data / f"track{k}.csv") for k in range(2)), "--track-error", "0.3"]
+    env = os.environ | {"BOGIE_JAX_CACHE_DIR": str(tmp_path / "cache")}
+    runs = []
+    for name in ("first", "second"):
+        command = [sys.executable, "-c", _COUNTING_COMMAND, *argv, "--out", str(tmp_path / name)]
+        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
+        assert done.returncode == 0, done.stderr[-3000:]
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    assert first["misses"] >= 3  # the simulation-free monitor: its three big programs at least
+    assert second["misses"] == 0 and second["hits"] >= first["misses"], second
+    verdicts = [
+        [(r["name"], r["verdict"]) for r in read_verdicts(tmp_path / name)["verdicts"]]
+        for name in ("first", "second")
+    ]
+    assert verdicts[0] == verdicts[1]
+
+
 @pytest.mark.slow  # the demo: its compiles (about 1.5 min of CPU) when run alone
 def test_monitor_data_replays_the_demo_from_its_files(demo, tmp_path, capsys):
     """`monitor --data` on the runs and track record the demo wrote (CSV, 17 digits) gives the
