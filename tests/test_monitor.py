@@ -14,6 +14,9 @@ workers, they compiled the same simulation and Jacobian programs again.)
 import dataclasses
 import json
 import math
+import os
+import subprocess
+import sys
 
 import diffrax as dfx
 import equinox as eqx
@@ -874,10 +877,6 @@ def test_a_second_monitor_process_on_data_of_the_same_shapes_compiles_nothing(de
     directory (`BOGIE_JAX_CACHE_DIR`): the first compiles, the second finds every program in
     the persistent cache (no cache miss: XLA compiles nothing; the program store spares it the
     big programs' tracing) and gives the same verdicts."""
-    import os
-    import subprocess
-    import sys
-
     _, out, _ = demo
     data = out / "data"
     argv = ["monitor", "--data", *(str(data / f"run{k}.csv") for k in range(2))]
