@@ -13,6 +13,7 @@ workers, they compiled the same simulation and Jacobian programs again.)
 
 import dataclasses
 import json
+import logging
 import math
 import os
 import subprocess
@@ -20,6 +21,7 @@ import sys
 
 import diffrax as dfx
 import equinox as eqx
+import jax
 import jax.random as jr
 import numpy as np
 import pytest
@@ -46,6 +48,7 @@ from bogie_jax.monitor import (
     as_defect_scenario,
     check_nuisance,
     classify_elements,
+    compile_programs,
     decision_z,
     default_nuisance,
     group_value,
@@ -53,6 +56,7 @@ from bogie_jax.monitor import (
     levenberg_marquardt,
     monitor,
     recorded_track,
+    scenario_layout,
     scenario_measurements,
     with_speed_error,
     worn_wheels,
@@ -404,6 +408,34 @@ def test_monitor_finds_the_left_yaw_damper_at_50_percent(yaw_left_50):
     assert row["tolerance_band"]["healthy"] == pytest.approx([320e3, 480e3])
     assert record["verdicts"][0]["evidence"]["runs_used"] == "2 of 2 runs"
     assert {"first_jacobian_s", "fit_s", "total_s"} <= set(result.timings)
+
+
+def test_a_layout_of_zero_data_compiles_what_monitor_evaluates(yaw_left_50, caplog):
+    """`scenario_layout` gives the measurements' shapes and metadata with zero data, and
+    `compile_programs` on it compiles the residual and Jacobian programs that `monitor` then
+    evaluates on the simulated data without compiling them again (JAX's compile log). Two
+    candidates: programs of their own in this module."""
+    layout = scenario_layout(RUNS)
+    for blank, m in zip(layout, yaw_left_50):
+        np.testing.assert_allclose(blank.times, m.times, rtol=0, atol=1e-12)
+        assert blank.data.shape == m.data.shape and not np.any(blank.data)
+        assert (blank.channels, blank.units, blank.track, blank.layout, float(blank.speed)) == (
+            m.channels, m.units, m.track, m.layout, float(m.speed)
+        )  # fmt: skip
+    options = MonitorOptions(candidates=("yaw_dampers.left.c", "yaw_dampers.right.c"))
+    programs = ("residual_jacobian", "_residuals")
+
+    def compiled(call) -> set[str]:
+        caplog.clear()
+        with caplog.at_level(logging.WARNING), jax.log_compiles():
+            call()
+        return {p for p in programs for r in caplog.records if f"Compiling jit({p})" in r.message}
+
+    # one program where the tests' solve tolerance is as loose as the Jacobian's
+    assert "residual_jacobian" in compiled(lambda: compile_programs(layout, options=options))
+    found = []
+    assert compiled(lambda: found.append(monitor(yaw_left_50, options=options))) == set()
+    assert found[0].verdict("yaw_dampers.left.c").verdict in ALARMS
 
 
 def test_monitor_raises_no_alarm_on_a_healthy_bogie(healthy):

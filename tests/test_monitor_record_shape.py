@@ -90,12 +90,8 @@ def test_the_mixed_term_is_the_term_of_the_mixed_error():
         e = np.asarray(tracks[0].values) - values
         return y - a @ phi - g @ e.reshape(-1), -a
 
-    def derivatives(errors, phi):
-        return evaluate_at([track], phi)[0], np.array(
-            [-g @ es[0].values.reshape(-1) for es in errors]
-        )
-
-    fit = types.SimpleNamespace(evaluate_on=evaluate_at, track_derivatives=derivatives)
+    residuals_at = lambda tracks, phi: evaluate_at(tracks, phi)[0]
+    fit = types.SimpleNamespace(evaluate_on=evaluate_at, residuals_on=residuals_at)
 
     def term(error, seed):
         return track_error_effect(fit, [track], np.zeros(n), error, Sampling(3000, seed=seed))

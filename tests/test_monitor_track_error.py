@@ -26,23 +26,11 @@ def _record(rng, n):
     return np.cumsum(rng.standard_normal((n, 3)), axis=0) * np.array([1e-4, 2e-4, 1e-4])
 
 
-def _linear_fit(evaluate_at, tracks, derivatives_at=None):
-    """The `fit` of `track_error_effect` for `evaluate_at(tracks, phi) -> (r, J)`; by default
-    the derivatives of a model linear in its records: r(record + e) - r(record) is exactly its
-    derivative along e."""
-
-    def differences(errors, phi):
-        r0 = np.asarray(evaluate_at(tracks, phi)[0])
-        shifted = [
-            [TrackIrregularity(t.s0, t.ds, np.asarray(t.values) + np.asarray(e.values))
-             for t, e in zip(tracks, es)]
-            for es in errors
-        ]  # fmt: skip
-        return r0, np.array([np.asarray(evaluate_at(x, phi)[0]) - r0 for x in shifted])
-
-    return types.SimpleNamespace(
-        evaluate_on=evaluate_at, track_derivatives=derivatives_at or differences
-    )
+def _fit(evaluate_at, residuals_at=None):
+    """The `fit` of `track_error_effect` for `evaluate_at(tracks, phi) -> (r, J)`, its residuals
+    alone from `residuals_at(tracks, phi)` (default: `evaluate_at`'s r)."""
+    residuals_on = residuals_at or (lambda tracks, phi: evaluate_at(tracks, phi)[0])
+    return types.SimpleNamespace(evaluate_on=evaluate_at, residuals_on=residuals_on)
 
 
 def test_record_error_has_the_level_and_the_spectrum_of_the_model():
@@ -115,7 +103,7 @@ def test_covariance_of_the_shift_matches_its_closed_form():
 
     rms, draws = 3e-4, 2000
     effect = track_error_effect(
-        _linear_fit(evaluate_at, [track]), [track], np.zeros(n), RecordError(rms, SEMI),
+        _fit(evaluate_at), [track], np.zeros(n), RecordError(rms, SEMI),
         Sampling(draws, seed=3),
     )  # fmt: skip
     got = effect.covariance
@@ -169,7 +157,7 @@ def test_simex_removes_the_attenuation_of_a_regression_on_a_noisy_record():
 
         tracks = [TrackIrregularity(0.0, 0.5, record)]
         effect = track_error_effect(
-            _linear_fit(evaluate_at, tracks), tracks, np.array([a_hat]), RecordError(rms, SEMI),
+            _fit(evaluate_at), tracks, np.array([a_hat]), RecordError(rms, SEMI),
             Sampling(16, seed=int(rng.integers(2**31))),
         )  # fmt: skip
         fitted.append(a_hat)
@@ -208,7 +196,7 @@ def test_each_pair_is_refitted_to_the_perturbed_records_minimum():
 
     tracks = [TrackIrregularity(0.0, 0.5, record)]
     effect = track_error_effect(
-        _linear_fit(evaluate_at, tracks), tracks, phi0, RecordError(rms, SEMI),
+        _fit(evaluate_at), tracks, phi0, RecordError(rms, SEMI),
         Sampling(40, pairs=20, refit_steps=6, seed=11),
     )  # fmt: skip
     draws = np.random.default_rng(11)
@@ -226,8 +214,10 @@ def test_each_pair_is_refitted_to_the_perturbed_records_minimum():
 
 
 def test_a_failed_draw_is_left_out():
-    """A draw whose derivative is not finite is left out of the covariance and the misfit; a
-    pair whose refit fails, of the bias only; the result does not depend on the workers."""
+    """A draw whose residuals on a perturbed record are not finite is left out of the
+    covariance and the misfit; a pair whose refit fails, of the bias only (its first
+    evaluation, at the estimate, still gives the draw's derivative); the result does not
+    depend on the workers."""
     rng = np.random.default_rng(2)
     values = _record(rng, 41)
     track = TrackIrregularity(0.0, 0.5, values)
@@ -241,25 +231,25 @@ def test_a_failed_draw_is_left_out():
         r = np.full(10, float(np.sum(np.asarray(tracks[0].values) - values))) - phi.sum()
         return (np.full(10, np.inf) if fail else r), np.eye(10)[:, :2]
 
-    def derivatives_at(errors, phi):
-        d = np.array([np.full(10, float(np.sum(es[0].values))) for es in errors])
-        d[1] = np.nan
-        return np.zeros(10), d
+    def residuals_at(tracks, phi):  # the draws beyond the pairs: one of each +-e fails
+        shift = float(np.sum(np.asarray(tracks[0].values) - values))
+        return np.full(10, np.nan if shift > 0 else shift) - phi.sum()
 
     # the start (phi = 0) and every refit's first step (from phi = 0) evaluate at phi = 0, the
     # second steps elsewhere: 1 + 3 pairs x 2 records x 2 steps = 13 calls, one pair left out
-    fit = _linear_fit(evaluate_at, [track], derivatives_at)
+    # of the bias; draws 3 and 4 (beyond the pairs) left out of the covariance
+    fit = _fit(evaluate_at, residuals_at)
     effect = track_error_effect(
         fit, [track], np.zeros(2), RecordError(1e-4, SEMI), Sampling(5, pairs=3, workers=1)
     )
-    assert effect.draws == 4 and effect.refit_draws == 2 and effect.covariance.shape == (2, 2)
-    assert effect.misfits.shape == (4, 10) and calls["n"] == 13
+    assert effect.draws == 3 and effect.refit_draws == 2 and effect.covariance.shape == (2, 2)
+    assert effect.misfits.shape == (3, 10) and calls["n"] == 13
     assert np.all(np.isfinite(effect.covariance)) and np.all(np.isfinite(effect.bias))
     calls.update(n=0, failed=False)
     again = track_error_effect(
         fit, [track], np.zeros(2), RecordError(1e-4, SEMI), Sampling(5, pairs=3, workers=4)
     )
-    assert again.draws == 4 and again.refit_draws == 2 and calls["n"] == 13
+    assert again.draws == 3 and again.refit_draws == 2 and calls["n"] == 13
     np.testing.assert_array_equal(again.covariance, effect.covariance)
     for bad in ({"refit_steps": 0}, {"pairs": 0}, {"draws": 1.5}):
         with pytest.raises(ValueError, match=next(iter(bad))):

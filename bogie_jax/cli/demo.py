@@ -18,6 +18,7 @@ and exits (`_candidates.py`).
 import datetime
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -26,9 +27,11 @@ from ..io import check_date, save_measurement, save_track_csv
 from ..monitor import (
     MonitorOptions,
     RunSpec,
+    compile_programs,
     group_value,
     monitor,
     recorded_track,
+    scenario_layout,
     scenario_measurements,
 )
 from ..params import get_parameter, manchester_benchmark
@@ -177,6 +180,28 @@ def truth_check(result, scenario, params) -> str:
     )
 
 
+def _simulate(args, scenario, runs, params, progress, monitored):
+    """The runs' measurements, simulated while `monitor`'s programs for them compile in a
+    thread of their own (`compile_programs` on `monitored` = (layout, tracks, options): the
+    programs do not need the data, and the two compiles share the cores)."""
+    import jax.random as jr
+
+    layout, tracks, options = monitored
+    progress.compiling(
+        "the simulation of the measurement runs and, beside it, the monitor's programs"
+    )
+    with ThreadPoolExecutor(1) as pool:
+        compiled = pool.submit(compile_programs, layout, tracks, params=params, options=options)
+        try:
+            key = jr.PRNGKey(args.seed) if args.noise > 0 else None
+            measurements = scenario_measurements(scenario, runs, params=params, key=key)
+        except (ValueError, RuntimeError) as e:
+            raise UsageError(str(e)) from None
+        progress.done(len(runs), len(runs), "simulated runs")
+        compiled.result()
+    return measurements
+
+
 def run(args, progress) -> int:
     params = manchester_benchmark()
     if args.list_elements:
@@ -188,22 +213,18 @@ def run(args, progress) -> int:
         f"demo: {scenario.description or scenario.name}; {len(runs)} runs at {speeds} m/s, "
         f"{args.duration:g} s each at {args.sample_rate:g} Hz, sensor noise x{args.noise:g}"
     )
-    import jax.random as jr
-
-    progress.compiling("the simulation of the measurement runs (one program for every run)")
-    try:
-        measurements = scenario_measurements(
-            scenario, runs, params=params, key=jr.PRNGKey(args.seed) if args.noise > 0 else None
-        )
-    except (ValueError, RuntimeError) as e:
-        raise UsageError(str(e)) from None
-    progress.done(len(runs), len(runs), "simulated runs")
     semi = float(np.asarray(params.contact.contact_semi_distance))
     noise_m = args.track_noise * 1e-3
+    layout = scenario_layout(runs, params=params)
     tracks = [
         recorded_track(m.track, noise=noise_m, offset=args.track_offset, semi_distance=semi)
-        for m in measurements
+        for m in layout
     ]
+    # the record's error is known here: carried into the intervals
+    options = MonitorOptions(
+        candidates=candidates, false_alarm_rate=args.false_alarm_rate, track_error=noise_m
+    )
+    measurements = _simulate(args, scenario, runs, params, progress, (layout, tracks, options))
     record_note = (
         f"track record: the fit uses the true track plus a recording error of "
         f"{args.track_noise:g} mm RMS per channel (spectrum-shaped), {args.track_offset:g} m "
@@ -213,15 +234,9 @@ def run(args, progress) -> int:
     )
     progress.say(record_note)
     result = monitor(
-        measurements,
-        tracks,
-        params=params,
-        # the record's error is known here: carried into the intervals
-        options=MonitorOptions(
-            candidates=candidates, false_alarm_rate=args.false_alarm_rate, track_error=noise_m
-        ),
+        measurements, tracks, params=params, options=options,
         progress=lambda line: progress.say(f"  {line}"),
-    )
+    )  # fmt: skip
     progress.say(verdict_table(result))
     fitted = fitted_signals(result, measurements, tracks, params, progress)
     truth = _truth(scenario, params)

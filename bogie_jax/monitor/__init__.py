@@ -34,6 +34,7 @@ from ._defects import (
     DefectScenario as DefectScenario,
     RunSpec as RunSpec,
     as_defect_scenario as as_defect_scenario,
+    scenario_layout as scenario_layout,
     scenario_measurements as scenario_measurements,
 )
 from ._discrepancy import Discrepancy as Discrepancy, model_discrepancy as model_discrepancy
@@ -82,7 +83,7 @@ from ._misfit_scale import (
     misfit_scales as misfit_scales,
     scaled_for_misfit as scaled_for_misfit,
 )
-from ._monitor import monitor as monitor
+from ._monitor import compile_programs as compile_programs, monitor as monitor
 from ._nuisance import (
     DEFAULT_NUISANCE as DEFAULT_NUISANCE,
     MAX_OFFSET as MAX_OFFSET,

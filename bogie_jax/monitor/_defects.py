@@ -19,7 +19,12 @@ from collections.abc import Mapping, Sequence
 import jax.random as jr
 import numpy as np
 
-from ..measure import Measurement, synthetic_measurement
+from ..measure import (
+    Measurement,
+    default_sensor_layout,
+    layout_description,
+    synthetic_measurement,
+)
 from ..params import (
     BogieParams,
     ModelOptions,
@@ -28,7 +33,7 @@ from ..params import (
     resolve_parameter,
     set_parameters,
 )
-from ..simulation import SolveSettings
+from ..simulation import SolveSettings, sample_times
 from ..track import SPECTRA, TrackReference
 
 
@@ -278,11 +283,8 @@ def scenario_measurements(
     runs = _check_runs(runs, key)
     params = manchester_benchmark() if params is None else params
     truth = scenario.true_params(params)
-    wheelbase = 2.0 * float(np.asarray(params.geometry.semi_wheelbase))
-    length = max(run.distance for run in runs) + wheelbase + RUN_MARGIN
     out = []
-    for k, run in enumerate(runs):
-        reference = TrackReference(spectrum=run.track, seed=run.seed, length=length)
+    for k, (run, reference) in enumerate(zip(runs, _references(runs, params))):
         window = (
             {"start_position": run.start_position, "lead_in": run.start_position}
             if run.start_position > 0
@@ -305,3 +307,34 @@ def scenario_measurements(
             )
         )
     return tuple(out)
+
+
+def _references(runs, params) -> list[TrackReference]:
+    """Each run's `TrackReference`: its spectrum and seed, one common length (the longest run
+    plus the wheelbase and `RUN_MARGIN`)."""
+    wheelbase = 2.0 * float(np.asarray(params.geometry.semi_wheelbase))
+    length = max(run.distance for run in runs) + wheelbase + RUN_MARGIN
+    return [TrackReference(spectrum=run.track, seed=run.seed, length=length) for run in runs]
+
+
+def scenario_layout(runs: Sequence[RunSpec], *, params: BogieParams | None = None, sensors=None):
+    """Measurements of the shapes and metadata that `scenario_measurements` gives for `runs`
+    (sample times, channels, speeds, track references), their data zero: for compiling
+    `monitor`'s programs while the data are simulated (`compile_programs`). **Raises:** as
+    `scenario_measurements` for bad `runs`."""
+    runs = _check_runs(runs, jr.PRNGKey(0))
+    params = manchester_benchmark() if params is None else params
+    sensors = default_sensor_layout(params) if sensors is None else tuple(sensors)
+    return tuple(
+        Measurement(
+            times=run.start_position / run.speed + sample_times(run.duration, run.sample_rate),
+            data=np.zeros((sample_times(run.duration, run.sample_rate).size, len(sensors))),
+            channels=tuple(s.name for s in sensors),
+            units=tuple(s.unit for s in sensors),
+            speed=run.speed,
+            track=reference,
+            layout=layout_description(sensors),
+            start_position=run.start_position,
+        )
+        for run, reference in zip(runs, _references(runs, params))
+    )

@@ -116,6 +116,16 @@ def monitor(
     return summarise(done.space, statuses, tuple(verdicts), judged, reasons, timings | _total(tic))
 
 
+def compile_programs(measurements, tracks=None, *, params=None, options=None) -> None:
+    """Compile the programs that `monitor(measurements, tracks, params=params,
+    options=options)` evaluates (or read them from the program store and the persistent
+    cache), by evaluating its first Jacobian (`first_jacobian`): a later `monitor` on data of
+    the same shapes, channels, track references and options compiles nothing. The data's
+    values are not used: measurements of zero data do (`scenario_layout`), so the programs can
+    compile while the data are simulated or read. **Raises:** as `monitor`."""
+    first_jacobian(prepare(measurements, tracks, params, options), lambda line: None)
+
+
 def _total(tic: float) -> dict[str, float]:
     return {"total_s": time.perf_counter() - tic}
 
@@ -139,12 +149,9 @@ def prepare(measurements, tracks, params, options) -> MonitorProblem:
 
 def first_jacobian(problem: MonitorProblem, say):
     """Step 2: the program compiled and evaluated at the nominal bogie: the program (the runs
-    whose simulation solved there active; with a `track_error`, its track-record derivatives
-    compiling in a thread of their own), its Jacobian there, each run's reason for being left
+    whose simulation solved there active), its Jacobian there, each run's reason for being left
     out (`""` where used) and the timings. **Raises:** `RuntimeError` if no run solved."""
     program = JointProgram.build(problem)
-    if problem.options.track_error > 0:
-        program = program.warming_up(problem.options.track_error_draws)
     n_x = program.nuisance_layout().n_x
     say(
         f"compiling the joint residual Jacobian ({problem.n_runs} runs, "

@@ -5,9 +5,9 @@ mode, with each run's corrections where fitted) and evaluates its residuals r an
 with respect to x = [ln p of the candidates and nuisance parameters, run corrections]
 (`bogie_jax.cost.residual_jacobian`): one compiled program for the Fisher information, every
 fit and horizon stage, the profile tests and the track record's refits, whatever records, runs
-or horizon are used. A second program gives r's derivatives along the track record's error
-draws (`track_derivatives`), for the records' term. All go through the program store where
-the process keeps one (the command line).
+or horizon are used; and a program of the residuals alone (`residuals`: the tight solves of a
+looser Jacobian, below, and the records' draws of `_track_error.py`, on other records). Both go
+through the program store where the process keeps one (the command line).
 
 **Two tolerances** (`MonitorOptions.jacobian_rtol`). The residuals set the estimate, and its
 cost differences every profile test; the Jacobian sets the Gauss-Newton step and the
@@ -29,7 +29,7 @@ is a new object.
 """
 
 import dataclasses
-from concurrent.futures import Future, ThreadPoolExecutor, wait
+from concurrent.futures import ThreadPoolExecutor
 
 import diffrax as dfx
 import equinox as eqx
@@ -41,7 +41,6 @@ from ..cost import RunChannels, make_joint_objective, residual_jacobian
 from ..params import BogieParams
 from ..runtime.program_store import stored_program
 from ..runtime.solve_settings import SolveSettings
-from ..track import TrackIrregularity
 from ._nuisance import NuisanceLayout
 from ._options import MonitorOptions
 
@@ -67,29 +66,6 @@ def _through_store(name: str, fn, objective, *args):
         return fn(objective, *args)
     call, out_tree = stored
     return jax.tree.unflatten(out_tree, call(*jax.tree.leaves((dynamic, *args))))
-
-
-def _track_spec(objective):
-    """`objective`'s filter spec: True at the `values` and `curvatures` of its track records."""
-
-    def mark(node):
-        if not isinstance(node, TrackIrregularity):
-            return False
-        spec = object.__new__(TrackIrregularity)  # a spec, not a track: no __init__
-        for name, on in (("s0", False), ("ds", False), ("values", True), ("curvatures", True)):
-            object.__setattr__(spec, name, on)
-        return spec
-
-    return jax.tree.map(mark, objective, is_leaf=lambda x: isinstance(x, TrackIrregularity))
-
-
-@eqx.filter_jit
-def _track_derivatives(objective, x, directions):
-    """r (m,) at x and its derivatives (K, m) along the K track-record `directions` (the track
-    part of `objective`'s tree, `_track_spec`, stacked on a leading axis): forward mode."""
-    tracks, rest = eqx.partition(objective, _track_spec(objective))
-    fn = lambda t: jnp.ravel(eqx.combine(t, rest).residuals(x))
-    return jax.vmap(lambda d: jax.jvp(fn, (tracks,), (d,)), out_axes=(None, 0))(directions)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,7 +106,6 @@ class JointProgram:
     problem: MonitorProblem
     objective: object
     active: np.ndarray
-    warming: Future | None = dataclasses.field(default=None, compare=False)
     jacobian_rtol: float | None = None
 
     @classmethod
@@ -179,35 +154,6 @@ class JointProgram:
         (module docstring)."""
         return dataclasses.replace(self, jacobian_rtol=self.problem.options.jacobian_rtol)
 
-    def warming_up(self, draws: int) -> "JointProgram":
-        """This program with `track_derivatives` for `draws` directions compiled in a thread
-        of its own from now on (on another core while the Jacobian's compiles)."""
-        zeros = [
-            [TrackIrregularity(t.s0, t.ds, np.zeros_like(t.values)) for t in self.problem.tracks]
-        ]
-        x = np.zeros(self.nuisance_layout().n_x)
-        pool = ThreadPoolExecutor(1)
-        future = pool.submit(self.track_derivatives, x, zeros * draws)
-        pool.shutdown(wait=False)
-        return dataclasses.replace(self, warming=future)
-
-    def track_derivatives(self, x, errors) -> tuple[np.ndarray, np.ndarray]:
-        """r (m,) at x and dr along each of the K record errors `errors` (K lists of one
-        `TrackIrregularity` per run: the change of each run's record) (K, m), on the host, both
-        from the solves of `derivative_objective`. A record enters r through its samples and
-        their spline curvatures, both linear in the samples, so dr along e is the forward-mode
-        derivative along (e, e's curvatures): one compiled program for the K directions."""
-        if self.warming is not None:
-            wait([self.warming])  # its compile, so that it is not done twice
-        spec = _track_spec(self.objective)
-        parts = [eqx.filter(self.on_records(e).objective, spec) for e in errors]
-        directions = jax.tree.map(lambda *leaves: jnp.stack(leaves), *parts)
-        r, d = _through_store(
-            "track_derivatives", _track_derivatives, self.derivative_objective(),
-            jnp.asarray(x), directions,
-        )  # fmt: skip
-        return np.asarray(r), np.asarray(d)
-
     @property
     def slices(self) -> tuple:
         """Each run's rows of r."""
@@ -229,13 +175,14 @@ class JointProgram:
             r, jac = _through_store("residual_jacobian", _JACOBIAN, self.objective, x)
             return np.asarray(r), np.asarray(jax.block_until_ready(jac))
         with ThreadPoolExecutor(1) as pool:
-            residuals = pool.submit(self._residuals_now, x)
+            residuals = pool.submit(self.residuals, x)
             _, jac = _through_store("residual_jacobian", _JACOBIAN, loose, x)
             jac = np.asarray(jax.block_until_ready(jac))
             return residuals.result(), jac
 
-    def _residuals_now(self, x) -> np.ndarray:
-        r = _through_store("residuals", _residuals, self.objective, x)
+    def residuals(self, x) -> np.ndarray:
+        """r (m,) at x, on the host, from solves at the settings' tolerance."""
+        r = _through_store("residuals", _residuals, self.objective, jnp.asarray(x))
         return np.asarray(jax.block_until_ready(r))
 
     def derivative_objective(self):
@@ -345,11 +292,11 @@ class FitSpace:
             r, jac_v = np.where(self.window, r, 0.0), np.where(self.window[:, None], jac @ b, 0.0)
         return self.project(r), self.project(jac_v), jac
 
-    def track_derivatives(self, errors, v) -> tuple[np.ndarray, np.ndarray]:
-        """Weighted r at v and its derivatives (K, m) along the K record `errors`
-        (`JointProgram.track_derivatives`), in these rows (no bounds, no memo)."""
-        r, d = self.program.track_derivatives(self.matrix() @ v, errors)
-        return self.project(r) * self.rows, self.project(d.T).T * self.rows
+    def residuals_on(self, records, v) -> np.ndarray:
+        """Weighted r at v with other track records (`JointProgram.residuals`; no bounds, no
+        memo)."""
+        r = self.program.on_records(records).residuals(self.matrix() @ v)
+        return self.project(r) * self.rows
 
     def evaluate_on(self, records, v) -> tuple[np.ndarray, np.ndarray]:
         """Weighted r and dr/dv at v with other track records (no bounds, no memo)."""
