@@ -54,18 +54,26 @@ def _residuals(objective, x):
     return jnp.ravel(objective.residuals(x, None))
 
 
-def _through_store(name: str, fn, objective, *args):
-    """`fn(objective, *args)` (`fn` a `filter_jit` function), from the program store where the
-    process keeps one (`bogie_jax.runtime.program_store`, as the command line does: a later
-    process on data of the same shapes traces nothing), else as it is. The store's key holds
-    `name` and the objective's static part (the arrays are the program's arguments)."""
+def _program(name: str, fn, objective, *args):
+    """A thunk running `fn(objective, *args)` (`fn` a `filter_jit` function): from the program
+    store where the process keeps one (`bogie_jax.runtime.program_store`, as the command line
+    does: traced and lowered now, or read, so that a later process on data of the same shapes
+    traces nothing; compiled at the first call), else as it is (traced at the call). The
+    store's key holds `name` and the objective's static part (the arrays are the program's
+    arguments)."""
     dynamic, static = eqx.partition(objective, eqx.is_array)
     jitted = jax.jit(lambda d, *a: fn(eqx.combine(d, static), *a))
     stored = stored_program(jitted, (dynamic, *args), identity=(name, static))
     if stored is None:
-        return fn(objective, *args)
+        return lambda: fn(objective, *args)
     call, out_tree = stored
-    return jax.tree.unflatten(out_tree, call(*jax.tree.leaves((dynamic, *args))))
+    leaves = jax.tree.leaves((dynamic, *args))
+    return lambda: jax.tree.unflatten(out_tree, call(*leaves))
+
+
+def _through_store(name: str, fn, objective, *args):
+    """`fn(objective, *args)` through the program store (`_program`)."""
+    return _program(name, fn, objective, *args)()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -174,15 +182,19 @@ class JointProgram:
         if loose is self.objective:  # one solve gives both
             r, jac = _through_store("residual_jacobian", _JACOBIAN, self.objective, x)
             return np.asarray(r), np.asarray(jax.block_until_ready(jac))
+        # J's program traced first where the store traces apart from compiling: its tracing
+        # and compile are the longest, and the residuals' tracing would share the interpreter
+        jacobian = _program("residual_jacobian", _JACOBIAN, loose, x)
         with ThreadPoolExecutor(1) as pool:
             residuals = pool.submit(self.residuals, x)
-            _, jac = _through_store("residual_jacobian", _JACOBIAN, loose, x)
-            jac = np.asarray(jax.block_until_ready(jac))
+            jac = np.asarray(jax.block_until_ready(jacobian()[1]))
             return residuals.result(), jac
 
-    def residuals(self, x) -> np.ndarray:
-        """r (m,) at x, on the host, from solves at the settings' tolerance."""
-        r = _through_store("residuals", _residuals, self.objective, jnp.asarray(x))
+    def residuals(self, x, objective=None) -> np.ndarray:
+        """r (m,) at x, on the host, from solves at the settings' tolerance (or of
+        `objective`, e.g. `derivative_objective()`: the same compiled program)."""
+        objective = self.objective if objective is None else objective
+        r = _through_store("residuals", _residuals, objective, jnp.asarray(x))
         return np.asarray(jax.block_until_ready(r))
 
     def derivative_objective(self):
@@ -293,9 +305,10 @@ class FitSpace:
         return self.project(r), self.project(jac_v), jac
 
     def residuals_on(self, records, v) -> np.ndarray:
-        """Weighted r at v with other track records (`JointProgram.residuals`; no bounds, no
-        memo)."""
-        r = self.program.on_records(records).residuals(self.matrix() @ v)
+        """Weighted r at v with other track records, from the solves that give derivatives
+        (`JointProgram.derivative_objective`: for differences; no bounds, no memo)."""
+        program = self.program.on_records(records)
+        r = program.residuals(self.matrix() @ v, program.derivative_objective())
         return self.project(r) * self.rows
 
     def evaluate_on(self, records, v) -> tuple[np.ndarray, np.ndarray]:
