@@ -1,5 +1,6 @@
 """Shared helpers of the benchmark scripts: timing, environment record, output files."""
 
+import contextlib
 import datetime
 import json
 import math
@@ -14,6 +15,19 @@ import numpy as np
 
 
 RESULTS = Path(__file__).parent / "results"
+
+
+@contextlib.contextmanager
+def git_worktree(commit: str, where: Path):
+    """The repository at `commit` checked out into `where` (a detached git worktree) while the
+    context lasts: a baseline package measured beside this checkout's."""
+    root = Path(__file__).resolve().parents[1]
+    git = ["git", "-C", str(root), "worktree"]
+    subprocess.run([*git, "add", "--detach", str(where), commit], check=True, capture_output=True)
+    try:
+        yield where
+    finally:
+        subprocess.run([*git, "remove", "--force", str(where)], check=False, capture_output=True)
 
 
 def today() -> str:

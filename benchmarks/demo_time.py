@@ -44,34 +44,22 @@ def run_demo(source: Path, cache: Path, out: Path) -> dict:
     return {"wall_s": wall, "truth": truth, "load_1min": load}
 
 
-def _worktree(commit: str, where: Path) -> Path:
-    subprocess.run(
-        ["git", "-C", str(ROOT), "worktree", "add", "--detach", str(where), commit],
-        check=True, capture_output=True,
-    )  # fmt: skip
-    return where
-
-
 def measure(baseline: str, repeats: int) -> list[dict]:
+    sys.path.insert(0, str(ROOT))
+    from benchmarks._common import git_worktree
+
     records = []
-    with tempfile.TemporaryDirectory() as tmp:
-        old = _worktree(baseline, Path(tmp) / "baseline")
-        try:
-            for k in range(repeats):
-                record = {"repeat": k}
-                for label, source in (("now", ROOT), ("baseline", old)):
-                    cache, out = Path(tmp) / f"cache-{label}-{k}", Path(tmp) / f"out-{label}"
-                    record[label] = {
-                        "cold": run_demo(source, cache, out),
-                        "warm": run_demo(source, cache, out),
-                    }
-                records.append(record)
-                print(json.dumps(record), flush=True)
-        finally:
-            subprocess.run(
-                ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(old)],
-                check=False, capture_output=True,
-            )  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp, git_worktree(baseline, Path(tmp) / "base") as old:
+        for k in range(repeats):
+            record = {"repeat": k}
+            for label, source in (("now", ROOT), ("baseline", old)):
+                cache, out = Path(tmp) / f"cache-{label}-{k}", Path(tmp) / f"out-{label}"
+                record[label] = {
+                    "cold": run_demo(source, cache, out),
+                    "warm": run_demo(source, cache, out),
+                }
+            records.append(record)
+            print(json.dumps(record), flush=True)
     return records
 
 
@@ -118,7 +106,6 @@ def main(argv=None):
     if args.repeats < 1:
         raise SystemExit(f"--repeats = {args.repeats} must be >= 1")
     records = measure(args.baseline, args.repeats)
-    sys.path.insert(0, str(ROOT))
     from benchmarks._common import write_outputs
 
     extra = {"baseline": args.baseline, "cpu_count": os.cpu_count()}

@@ -26,6 +26,7 @@ Writes `results/monitor_time/two_8s_runs.json` and `.md`.
 """
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
@@ -108,36 +109,25 @@ def _child(index: int, cache: str, calls: int, source: Path, duration: float) ->
     return [{**line, "load_1min": load} for line in lines]
 
 
-def _worktree(commit: str, where: Path) -> Path:
-    subprocess.run(
-        ["git", "-C", str(ROOT), "worktree", "add", "--detach", str(where), commit],
-        check=True, capture_output=True,
-    )  # fmt: skip
-    return where
-
-
 def measure(cases: int, baseline: str | None, baseline_cases: int, duration: float) -> list[dict]:
+    sys.path.insert(0, str(ROOT))
+    from benchmarks._common import git_worktree
+
     records = []
-    with tempfile.TemporaryDirectory() as tmp:
-        old = _worktree(baseline, Path(tmp) / "baseline") if baseline_cases else None
-        try:
-            for index in range(1, cases + 1):
-                cache = str(Path(tmp) / f"cache{index}")
-                cold, again = _child(index, cache, 2, ROOT, duration)
-                (warm,) = _child(index, cache, 1, ROOT, duration)
-                record = {"case": index, "duration_s": duration, "cold": cold, "in_memory": again,
-                          "warm": warm}  # fmt: skip
-                if old is not None and index <= baseline_cases:
-                    base_cache = str(Path(tmp) / f"base{index}")
-                    record["baseline"] = _child(index, base_cache, 2, old, duration)[1]
-                records.append(record)
-                print(json.dumps({k: _brief(v) for k, v in record.items()}), flush=True)
-        finally:
-            if old is not None:
-                subprocess.run(
-                    ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(old)],
-                    check=False, capture_output=True,
-                )  # fmt: skip
+    with contextlib.ExitStack() as stack:
+        tmp = Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        old = stack.enter_context(git_worktree(baseline, tmp / "base")) if baseline_cases else None
+        for index in range(1, cases + 1):
+            cache = str(tmp / f"cache{index}")
+            cold, again = _child(index, cache, 2, ROOT, duration)
+            (warm,) = _child(index, cache, 1, ROOT, duration)
+            record = {"case": index, "duration_s": duration, "cold": cold, "in_memory": again,
+                      "warm": warm}  # fmt: skip
+            if old is not None and index <= baseline_cases:
+                base_cache = str(tmp / f"base{index}")
+                record["baseline"] = _child(index, base_cache, 2, old, duration)[1]
+            records.append(record)
+            print(json.dumps({k: _brief(v) for k, v in record.items()}), flush=True)
     return records
 
 
@@ -227,7 +217,6 @@ def main(argv=None):
     if args.cases < 1 or not 0 <= args.baseline_cases <= args.cases:
         raise SystemExit("--cases must be >= 1 and --baseline-cases in [0, --cases]")
     records = measure(args.cases, args.baseline, args.baseline_cases, args.duration)
-    sys.path.insert(0, str(ROOT))
     from benchmarks._common import write_outputs
 
     extra = {"baseline": args.baseline, "cpu_count": os.cpu_count()}
