@@ -353,10 +353,16 @@ def test_monitor_candidates_reach_the_options(tmp_path, monkeypatch):
 
 
 def test_demo_candidates_reach_the_options(tmp_path, monkeypatch):
+    """The chosen candidates reach `monitor` and the programs compiled beside the simulation
+    (`compile_programs`), the same options."""
     seen = _capture_monitor(monkeypatch, "demo")
     blank = lambda *a, **k: [types.SimpleNamespace(track=None)]
     monkeypatch.setattr("bogie_jax.cli.demo.scenario_measurements", blank)
     monkeypatch.setattr("bogie_jax.cli.demo.recorded_track", lambda *a, **k: None)
+    compiled = []
+    fake_compile = lambda layout, tracks, *, params, options: compiled.append(options)
+    monkeypatch.setattr("bogie_jax.cli.demo.compile_programs", fake_compile)
     with pytest.raises(_Captured):
         main(["demo", "--noise", "0", "--candidates", *CHOSEN, "--out", str(tmp_path / "o")])
     assert seen[0].candidates == tuple(CHOSEN)
+    assert compiled == seen
