@@ -227,20 +227,24 @@ class RunSpec:
         return self.start_position + self.speed * self.duration
 
 
-def _check_runs(runs, key) -> tuple[RunSpec, ...]:
-    """`runs` as a non-empty tuple of `RunSpec`s, with a `key` where one is noisy."""
-    runs = tuple(runs)
-    if not runs:
-        raise ValueError("`runs` is empty: give at least one RunSpec")
-    for k, run in enumerate(runs):
-        if not isinstance(run, RunSpec):
-            raise TypeError(f"`runs[{k}]` must be a RunSpec, got {type(run).__name__}")
+def _check_key(runs: tuple[RunSpec, ...], key) -> None:
+    """A `key` where one of `runs` is noisy."""
     noisy = [k for k, run in enumerate(runs) if run.noise_scale > 0]
     if noisy and key is None:
         raise ValueError(
             f"`key` is None but run {noisy[0]} has noise_scale = {runs[noisy[0]].noise_scale!r}: "
             "pass a PRNG key (jax.random.PRNGKey(seed)) or set noise_scale=0"
         )
+
+
+def _check_runs(runs) -> tuple[RunSpec, ...]:
+    """`runs` as a non-empty tuple of `RunSpec`s."""
+    runs = tuple(runs)
+    if not runs:
+        raise ValueError("`runs` is empty: give at least one RunSpec")
+    for k, run in enumerate(runs):
+        if not isinstance(run, RunSpec):
+            raise TypeError(f"`runs[{k}]` must be a RunSpec, got {type(run).__name__}")
     mid_run = [k for k, run in enumerate(runs) if run.start_position > 0]
     if mid_run and "start_position" not in inspect.signature(synthetic_measurement).parameters:
         raise ValueError(
@@ -280,7 +284,8 @@ def scenario_measurements(
     bad scenario, before anything is simulated.
     """
     scenario = as_defect_scenario(scenario)
-    runs = _check_runs(runs, key)
+    runs = _check_runs(runs)
+    _check_key(runs, key)
     params = manchester_benchmark() if params is None else params
     truth = scenario.true_params(params)
     out = []
@@ -322,13 +327,15 @@ def scenario_layout(runs: Sequence[RunSpec], *, params: BogieParams | None = Non
     (sample times, channels, speeds, track references), their data zero: for compiling
     `monitor`'s programs while the data are simulated (`compile_programs`). **Raises:** as
     `scenario_measurements` for bad `runs`."""
-    runs = _check_runs(runs, jr.PRNGKey(0))
+    runs = _check_runs(runs)
     params = manchester_benchmark() if params is None else params
     sensors = default_sensor_layout(params) if sensors is None else tuple(sensors)
-    return tuple(
-        Measurement(
-            times=run.start_position / run.speed + sample_times(run.duration, run.sample_rate),
-            data=np.zeros((sample_times(run.duration, run.sample_rate).size, len(sensors))),
+
+    def blank(run: RunSpec, reference: TrackReference) -> Measurement:
+        times = run.start_position / run.speed + sample_times(run.duration, run.sample_rate)
+        return Measurement(
+            times=times,
+            data=np.zeros((times.size, len(sensors))),
             channels=tuple(s.name for s in sensors),
             units=tuple(s.unit for s in sensors),
             speed=run.speed,
@@ -336,5 +343,5 @@ def scenario_layout(runs: Sequence[RunSpec], *, params: BogieParams | None = Non
             layout=layout_description(sensors),
             start_position=run.start_position,
         )
-        for run, reference in zip(runs, _references(runs, params))
-    )
+
+    return tuple(blank(run, ref) for run, ref in zip(runs, _references(runs, params)))
