@@ -82,6 +82,41 @@ def rate(k: int, n: int) -> str:
     return f"{100 * k / n:.0f} % ({k}/{n}; {100 * lo:.0f}-{100 * hi:.0f})"
 
 
+def coverage_reading(counts: dict, level: float = 0.95, band=(0.90, 0.98)) -> str:
+    """How per-element coverage counts `{name: (covered, judged)}` read against a calibrated
+    monitor, one whose every `level` interval holds the truth with probability `level`: the
+    elements whose count lies outside its binomial two-sided 95 % range (a test at 5 % of
+    `level` per element: under- or over-covering beyond chance), the same test on all the
+    counts together, and the probability that a calibrated monitor puts every element's
+    coverage in `band` at these counts (binomial, elements independent)."""
+    from scipy.stats import binom
+
+    beyond, all_in = [], 1.0
+    for name, (k, n) in counts.items():
+        if not n:
+            continue
+        lo, hi = math.ceil(band[0] * n - 1e-9), math.floor(band[1] * n + 1e-9)
+        all_in *= float(binom.cdf(hi, n, level) - binom.cdf(lo - 1, n, level))
+        if binom.cdf(k, n, level) < 0.025:
+            beyond.append(f"{name} {k}/{n} under")
+        elif binom.sf(k - 1, n, level) < 0.025:
+            beyond.append(f"{name} {k}/{n} over")
+    counted = sum(1 for k, n in counts.values() if n)
+    k_all, n_all = (sum(x) for x in zip(*counts.values())) if counts else (0, 0)
+    joint = "none"
+    if n_all and binom.cdf(k_all, n_all, level) < 0.025:
+        joint = "under"
+    elif n_all and binom.sf(k_all - 1, n_all, level) < 0.025:
+        joint = "over"
+    return (
+        f"beyond chance for a calibrated monitor (binomial, 5 %): {', '.join(beyond) or 'none'}; "
+        f"all together {k_all}/{n_all}: {joint} (a case's intervals are correlated, so this "
+        "overstates significance); a calibrated monitor puts all "
+        f"{counted} in {100 * band[0]:.0f}-{100 * band[1]:.0f} % with probability {all_in:.2f} "
+        "at these counts"
+    )
+
+
 def result_path(name: str, suffix: str) -> Path:
     """`results/BENCHMARK/WHAT.SUFFIX` for `name` = `"BENCHMARK/WHAT"` (its folder created):
     one folder per benchmark, each file named after what it measures."""

@@ -50,6 +50,7 @@ import math
 import jax.random as jr
 import numpy as np
 
+from benchmarks._common import coverage_reading
 from bogie_jax.monitor import (
     DEFAULT_CANDIDATES,
     DEFECT_SCENARIOS,
@@ -277,7 +278,7 @@ def report(records, outcomes, by_element: dict, headline: str, rate) -> tuple[di
         extra, more = _unjudged(unjudged, rate)
         out["unjudged"] = extra
         lines += ["", *more]
-    lines += ["", *_targets(out, cover)]
+    lines += ["", *_targets(out, cover, _coverage_counts(by_element))]
     return out, lines
 
 
@@ -289,14 +290,18 @@ def _withheld(rec: dict) -> bool:
     return any(v.get("withheld") for v in rec["verdicts"])
 
 
+def _coverage_counts(by_element: dict) -> dict[str, tuple[int, int]]:
+    """(covered, judged) of each judged element alone and each group."""
+    return {
+        k.removesuffix(" (group)"): (v["covered"], v["judged"])
+        for k, v in by_element.items()
+        if (k in DEFAULT_CANDIDATES or k.endswith(" (group)")) and v["judged"]
+    }
+
+
 def _coverage(by_element: dict) -> dict[str, float]:
     """The coverage of each judged element alone and each group."""
-    chosen = {
-        k.removesuffix(" (group)"): v
-        for k, v in by_element.items()
-        if k in DEFAULT_CANDIDATES or k.endswith(" (group)")
-    }
-    return {k: v["covered"] / v["judged"] for k, v in chosen.items() if v["judged"]}
+    return {k: c / n for k, (c, n) in _coverage_counts(by_element).items()}
 
 
 def _unjudged(records, rate) -> tuple[dict, list[str]]:
@@ -331,8 +336,9 @@ def _unjudged(records, rate) -> tuple[dict, list[str]]:
     return out, lines
 
 
-def _targets(out: dict, cover: dict) -> list[str]:
-    """Issue 51's targets of item 1, each with its figure and met / not met (point estimate)."""
+def _targets(out: dict, cover: dict, counts: dict) -> list[str]:
+    """Issue 51's targets of item 1, each with its figure and met / not met (point estimate);
+    `counts`: (covered, judged) per element and group (`_common.coverage_reading`)."""
 
     def line(what, ok, figure):
         return f"- {what}: {figure}, {'met' if ok else 'not met'}"
@@ -343,8 +349,11 @@ def _targets(out: dict, cover: dict) -> list[str]:
         outside = ", ".join(
             f"{k} {100 * c:.0f} %" for k, c in cover.items() if not COVERAGE[0] <= c <= COVERAGE[1]
         )  # fmt: skip
+        figure = (
+            ("outside: " + outside if outside else "all inside") + "; " + coverage_reading(counts)
+        )
         lines.append(line("95 % coverage in 90-98 % for every judged element and group", ok,
-                          "outside: " + outside if outside else "all inside"))  # fmt: skip
+                          figure))  # fmt: skip
     if out["cases"]:
         share, n = out["no_healthy_alarm"] / out["cases"], out["cases"]
         lines.append(line("no alarm on a healthy element in >= 95 % of cases",

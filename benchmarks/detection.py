@@ -139,7 +139,7 @@ from benchmarks._cases import (  # noqa: E402
     track_references,
     value,
 )
-from benchmarks._common import RESULTS, rate, write_outputs  # noqa: E402
+from benchmarks._common import RESULTS, coverage_reading, rate, write_outputs  # noqa: E402
 
 
 FOLDER = RESULTS / "detection"
@@ -725,7 +725,11 @@ def targets(summary: dict) -> list[str]:
     out += [line(what, ok, f"{100 * x:.1f} % (n = {n}{note})") for what, ok, x, n, note in rows]
     if cover:
         ok = all(0.9 <= c <= 0.98 for c in cover)
-        figure = f"{100 * min(cover):.0f}-{100 * max(cover):.0f} % over {len(cover)} elements"
+        counts = {k: (v["covered"], v["judged"]) for k, v in alone.items()}
+        figure = (
+            f"{100 * min(cover):.0f}-{100 * max(cover):.0f} % over {len(cover)} elements; "
+            f"{coverage_reading(counts)}"
+        )
         out.append(line("95 % coverage in 90-98 % for every element", ok, figure))
     groups = {k: v for k, v in summary["by_element"].items() if k.endswith(" (group)")}
     if groups:  # a group's verdict is what the engineer reads where the members are tied
