@@ -130,7 +130,7 @@ from bogie_jax.params import ModelOptions, manchester_benchmark
 
 # after the package: a process given another checkout's package (monitor_time.py) keeps it
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks import _mismatch  # noqa: E402
+from benchmarks import _mismatch, _paired  # noqa: E402
 from benchmarks._cases import (  # noqa: E402
     clean_runs,
     record_tracks,
@@ -784,6 +784,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
     p.add_argument("--report", action="store_true", help="only aggregate the records")
+    p.add_argument(
+        "--paired-with", default=None, metavar="COMMIT",
+        help="compare case by case with the records of the same --out committed at COMMIT",
+    )  # fmt: skip
     args = p.parse_args(argv)
     args.imperfections = parse_imperfections(args.imperfection)
     if args.nuisance is not None:
@@ -822,6 +826,12 @@ def main(argv=None):
     if not records:
         raise SystemExit(f"no records of {args.out} yet")
     summary, md = aggregate(records, cfg)
+    if args.paired_with:
+        earlier = _paired.committed_records(args.paired_with, FOLDER, args.out)
+        summary["paired"], lines = _paired.compare(
+            records, earlier, f"the records committed at {args.paired_with}"
+        )
+        md = md + "\n" + "\n".join(lines) + "\n"
     ordered = [records[k] for k in sorted(records)]
     # only aggregated again: the environment stays that of the run that measured the records
     previous = FOLDER / f"{args.out}.json"
