@@ -5,6 +5,7 @@ import math
 import sys
 from pathlib import Path
 
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._common import coverage_reading  # noqa: E402

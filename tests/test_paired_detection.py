@@ -4,6 +4,7 @@ on hand-made records whose differences are known."""
 import sys
 from pathlib import Path
 
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._paired import compare  # noqa: E402
