@@ -29,8 +29,12 @@ def test_verdict_changes_estimate_moves_and_other_inputs_are_told_apart():
     }
     new = {
         # a later benchmark draws more per case: an extra input keeps the case the same
-        0: _record(0, [("a", "healthy", 101.0, 9.0), ("b", "failed", 50.0, 5.0)],
-                   {"white_rms_m": 1e-4}, seconds=50.0),  # fmt: skip
+        0: _record(
+            0,
+            [("a", "healthy", 101.0, 9.0), ("b", "failed", 50.0, 5.0)],
+            {"white_rms_m": 1e-4},
+            seconds=50.0,
+        ),
         1: _record(1, [("a", "healthy", 103.0, 10.0)], seconds=50.0),
         2: {**_record(2, [("a", "healthy", 100.0, 10.0)]), "case": {"index": 2, "speeds": [0.0]}},
         3: _record(3, [("a", "healthy", 100.0, 10.0)]),
