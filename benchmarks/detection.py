@@ -785,8 +785,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
     p.add_argument("--report", action="store_true", help="only aggregate the records")
     p.add_argument(
-        "--paired-with", default=None, metavar="COMMIT",
-        help="compare case by case with the records of the same --out committed at COMMIT",
+        "--paired-with", default=None, metavar="COMMIT[:OUT]",
+        help="compare case by case with the records of OUT (default: --out) committed at COMMIT",
     )  # fmt: skip
     args = p.parse_args(argv)
     args.imperfections = parse_imperfections(args.imperfection)
@@ -827,9 +827,10 @@ def main(argv=None):
         raise SystemExit(f"no records of {args.out} yet")
     summary, md = aggregate(records, cfg)
     if args.paired_with:
-        earlier = _paired.committed_records(args.paired_with, FOLDER, args.out)
+        commit, _, stem = args.paired_with.partition(":")
+        earlier = _paired.committed_records(commit, FOLDER, stem or args.out)
         summary["paired"], lines = _paired.compare(
-            records, earlier, f"the records committed at {args.paired_with}"
+            records, earlier, f"the records of `{stem or args.out}` committed at {commit}"
         )
         md = md + "\n" + "\n".join(lines) + "\n"
     ordered = [records[k] for k in sorted(records)]
