@@ -52,9 +52,9 @@ def _by_name(rec: dict) -> dict[str, dict]:
 
 def _moves(new: dict, old: dict) -> list[float]:
     """|new estimate - old estimate| / old standard error per element judged in both."""
-    out = []
+    out, now_by_name = [], _by_name(new)
     for name, was in _by_name(old).items():
-        now = _by_name(new).get(name)
+        now = now_by_name.get(name)
         se = was.get("std_error")
         if now is None or not se or not np.isfinite(se) or now["estimate"] is None:
             continue
