@@ -71,3 +71,19 @@ def check_power_of_two(name: str, value) -> int:
             f"hold only then), got {value}; try {below} or {2 * below}"
         )
     return value
+
+
+def nonempty_tuple(name: str, values, kind: type, hint: str) -> tuple:
+    """`values` (an iterable) as a tuple of `kind` instances. **Raises:** `ValueError` naming
+    `name` with `hint` (what to give) when it is empty, `TypeError` naming the first entry that
+    is not a `kind`."""
+    values = tuple(values)
+    if not values:
+        raise ValueError(f"`{name}` is empty: {hint}")
+    article = "an" if kind.__name__[0] in "AEIOUaeiou" else "a"
+    for k, value in enumerate(values):
+        if not isinstance(value, kind):
+            raise TypeError(
+                f"`{name}[{k}]` must be {article} {kind.__name__}, got {type(value).__name__}"
+            )
+    return values

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from .._validation import nonempty_tuple
 from ..params import BogieParams, ModelOptions
 from ..runtime.solve_settings import resolve_settings
 from ..simulation import SolveSettings
@@ -225,12 +226,9 @@ def joint_residual_model(models, *, vmap: bool | None = None) -> JointResidualMo
     **Raises:** `ValueError` for no runs, runs of different base parameters, or `vmap=True`
     with runs of different structure.
     """
-    models = tuple(models)
-    if not models:
-        raise ValueError("`models` is empty: a joint objective needs at least one run")
-    for k, m in enumerate(models):
-        if not isinstance(m, ResidualModel):
-            raise TypeError(f"`models[{k}]` must be a ResidualModel, got {type(m).__name__}")
+    models = nonempty_tuple(
+        "models", models, ResidualModel, "a joint objective needs at least one run"
+    )
     params, settings = models[0].params, models[0].settings
     base = jax.tree.flatten(params)
     for k, m in enumerate(models[1:], start=1):

@@ -2,6 +2,7 @@
 
 import json
 
+from .._validation import nonempty_tuple
 from ..params import BogieParams
 from ._locations import Axlebox, FramePoint
 from ._sensors import AbstractSensor, Accelerometer, RateGyro, sensor_from_description
@@ -54,12 +55,7 @@ def sensors_from_layout(text: str) -> tuple[AbstractSensor, ...]:
 
 def check_sensor_names(sensors) -> None:
     """Sensors must be `AbstractSensor`s with unique names."""
-    sensors = tuple(sensors)
-    if not sensors:
-        raise ValueError("`sensors` is empty: give at least one sensor")
-    for s in sensors:
-        if not isinstance(s, AbstractSensor):
-            raise TypeError(f"`sensors` must hold AbstractSensor modules, got {type(s).__name__}")
+    sensors = nonempty_tuple("sensors", sensors, AbstractSensor, "give at least one sensor")
     names = [s.name for s in sensors]
     dups = sorted({n for n in names if names.count(n) > 1})
     if dups:

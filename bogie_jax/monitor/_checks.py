@@ -3,6 +3,7 @@ runs a fit leaves out."""
 
 import numpy as np
 
+from .._validation import nonempty_tuple
 from ..measure import Measurement
 from ..params import resolve_parameter
 from ._elements import element_band, nominal_values, tied_group
@@ -43,13 +44,9 @@ def as_measurements(measurements) -> tuple[Measurement, ...]:
     `TypeError` naming the first entry that is not a `Measurement`)."""
     if isinstance(measurements, Measurement):
         measurements = (measurements,)
-    measurements = tuple(measurements)
-    if not measurements:
-        raise ValueError("`measurements` is empty: give at least one measurement run")
-    for k, m in enumerate(measurements):
-        if not isinstance(m, Measurement):
-            raise TypeError(f"`measurements[{k}]` must be a Measurement, got {type(m).__name__}")
-    return measurements
+    return nonempty_tuple(
+        "measurements", measurements, Measurement, "give at least one measurement run"
+    )
 
 
 def check_inputs(measurements, tracks):

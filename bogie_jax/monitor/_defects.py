@@ -19,6 +19,7 @@ from collections.abc import Mapping, Sequence
 import jax.random as jr
 import numpy as np
 
+from .._validation import nonempty_tuple
 from ..measure import (
     Measurement,
     default_sensor_layout,
@@ -239,12 +240,7 @@ def _check_key(runs: tuple[RunSpec, ...], key) -> None:
 
 def _check_runs(runs) -> tuple[RunSpec, ...]:
     """`runs` as a non-empty tuple of `RunSpec`s."""
-    runs = tuple(runs)
-    if not runs:
-        raise ValueError("`runs` is empty: give at least one RunSpec")
-    for k, run in enumerate(runs):
-        if not isinstance(run, RunSpec):
-            raise TypeError(f"`runs[{k}]` must be a RunSpec, got {type(run).__name__}")
+    runs = nonempty_tuple("runs", runs, RunSpec, "give at least one RunSpec")
     mid_run = [k for k, run in enumerate(runs) if run.start_position > 0]
     if mid_run and "start_position" not in inspect.signature(synthetic_measurement).parameters:
         raise ValueError(
