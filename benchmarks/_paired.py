@@ -82,7 +82,7 @@ def compare(new: dict[int, dict], old: dict[int, dict], old_name: str) -> tuple[
     moves = np.array(moves)
     same = len(shared) - len({k for k, *_ in changed})
     summary = {
-        "paired_with": old_name, "cases": len(shared), "inputs_differ": differ,
+        "paired_with": old_name, "cases": len(shared), "shared": shared, "inputs_differ": differ,
         "same_verdicts": same, "verdict_changes": [list(c) for c in changed],
         "estimate_move_se": {
             "elements": int(moves.size),
@@ -116,3 +116,34 @@ def compare(new: dict[int, dict], old: dict[int, dict], old_name: str) -> tuple[
         lines += ["", "| case | element | earlier | now |", "| ---: | --- | --- | --- |"]
         lines += [f"| {k} | {name} | {a} | {b} |" for k, name, a, b in changed]
     return summary, lines
+
+
+def side_by_side(now: dict, before: dict, before_name: str) -> list[str]:
+    """Markdown lines: issue 51's figures (`detection.aggregate`'s summaries, their "mismatch"
+    and "by_element" parts) of this run and of the earlier records of the same cases, one row
+    each: how the figures move with what changed between the runs (a record length, the
+    code)."""
+
+    def row(name: str, s: dict) -> str:
+        m, every = s["mismatch"], s["by_element"].get("all elements (alone)", {})
+        cover = list(m["coverage"].values())
+        span = f"{100 * min(cover):.0f}-{100 * max(cover):.0f} %" if cover else "-"
+        size = f"{100 * m['size_mae']:.1f}" if m["size_mae"] is not None else "-"
+        return (
+            f"| {name} | {m['cases']} | {every.get('covered', 0)}/{every.get('judged', 0)} | "
+            f"{span} | {m['no_healthy_alarm']}/{m['cases']} | "
+            f"{m['headline_found']}/{m['headline_cases']} | "
+            f"{m['not_explained']}/{m['explained_known']} | {size} |"
+        )
+
+    return [
+        "",
+        f"The same cases in this run and in {before_name}:",
+        "",
+        "| records | cases | intervals holding the truth (elements alone) | coverage per "
+        "element and group | no alarm on a healthy element | 50 % damper found | not explained "
+        "| size error [%] |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        row("this run", now),
+        row("earlier", before),
+    ]

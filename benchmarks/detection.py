@@ -829,9 +829,17 @@ def main(argv=None):
     if args.paired_with:
         commit, _, stem = args.paired_with.partition(":")
         earlier = _paired.committed_records(commit, FOLDER, stem or args.out)
-        summary["paired"], lines = _paired.compare(
-            records, earlier, f"the records of `{stem or args.out}` committed at {commit}"
-        )
+        name = f"the records of `{stem or args.out}` committed at {commit}"
+        summary["paired"], lines = _paired.compare(records, earlier, name)
+        shared = summary["paired"]["shared"]
+        if shared:
+
+            def on_shared(recs):
+                return aggregate({k: recs[k] for k in shared}, cfg)[0]
+
+            lines += _paired.side_by_side(
+                on_shared(records), on_shared(earlier), "the earlier records"
+            )
         md = md + "\n" + "\n".join(lines) + "\n"
     ordered = [records[k] for k in sorted(records)]
     # only aggregated again: the environment stays that of the run that measured the records

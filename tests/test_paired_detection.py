@@ -7,7 +7,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._paired import compare  # noqa: E402
+from benchmarks._paired import compare, side_by_side  # noqa: E402
 
 
 def _record(index, verdicts, extra_inputs=None, seconds=100.0):
@@ -48,3 +48,20 @@ def test_verdict_changes_estimate_moves_and_other_inputs_are_told_apart():
     assert abs(moves["max"] - 0.3) < 1e-12 and abs(moves["median"] - 0.1) < 1e-12
     assert summary["time_ratio_median"] == 0.5
     assert "| 0 | b | degraded | failed |" in lines
+
+
+def test_side_by_side_puts_both_runs_figures_in_one_table():
+    def summary(covered, alarms_free, found, unexplained, size):
+        return {
+            "mismatch": {
+                "cases": 20, "no_healthy_alarm": alarms_free, "headline_found": found,
+                "headline_cases": 4, "not_explained": unexplained, "explained_known": 20,
+                "size_mae": size, "coverage": {"a": 0.85, "b": 1.0},
+            },
+            "by_element": {"all elements (alone)": {"covered": covered, "judged": 200}},
+        }  # fmt: skip
+
+    lines = side_by_side(summary(190, 20, 4, 12, 0.021), summary(172, 19, 2, 9, None), "2 s")
+    assert "| this run | 20 | 190/200 | 85-100 % | 20/20 | 4/4 | 12/20 | 2.1 |" in lines
+    assert "| earlier | 20 | 172/200 | 85-100 % | 19/20 | 2/4 | 9/20 | - |" in lines
+    assert any("in 2 s:" in line for line in lines)
