@@ -16,8 +16,15 @@ import pytest
 
 from bogie_jax.cli import main
 from bogie_jax.io import read_verdicts, write_report, write_verdicts
-from bogie_jax.monitor import DEFAULT_CANDIDATES, ToleranceBand, decision_z, judge, same_measure
-from bogie_jax.params import manchester_benchmark
+from bogie_jax.monitor import (
+    DEFAULT_CANDIDATES,
+    ToleranceBand,
+    decision_z,
+    judge,
+    nonlinear_options,
+    same_measure,
+)
+from bogie_jax.params import ModelOptions, manchester_benchmark
 
 
 ALARMS = ("degraded", "failed")
@@ -294,13 +301,15 @@ class _Captured(Exception):
     """Raised by the stand-in `monitor` once it has the options (no fit is run)."""
 
 
-def _capture_monitor(monkeypatch, module):
-    """Replace `monitor` in `bogie_jax.cli.<module>` by one that keeps its options and raises
-    `_Captured`; returns the list the options go to."""
+def _capture_monitor(monkeypatch, module, params_seen=None):
+    """Replace `monitor` in `bogie_jax.cli.<module>` by one that keeps its options (and its
+    parameters in `params_seen`) and raises `_Captured`; returns the list the options go to."""
     seen = []
 
     def fake(measurements, tracks, *, params, options, progress=None):
         seen.append(options)
+        if params_seen is not None:
+            params_seen.append(params)
         raise _Captured
 
     monkeypatch.setattr(f"bogie_jax.cli.{module}.monitor", fake)
@@ -350,6 +359,41 @@ def test_monitor_candidates_reach_the_options(tmp_path, monkeypatch):
     with pytest.raises(_Captured):
         main(["monitor", "--data", a, "--candidates", *CHOSEN, "--out", str(tmp_path / "o")])
     assert seen[0].candidates == tuple(CHOSEN)
+
+
+def test_monitor_contact_and_fit_model_reach_the_fit(tmp_path, monkeypatch):
+    params = []
+    seen = _capture_monitor(monkeypatch, "monitor", params)
+    a = _blank_file(tmp_path / "a.csv")
+    with pytest.raises(_Captured):
+        main(["monitor", "--data", a, "--out", str(tmp_path / "o")])
+    with pytest.raises(_Captured):
+        argv = ["--contact", "s1002-uic60", "--fit-model", "nonlinear"]
+        main(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")])
+    assert [p.contact_geometry for p in params] == ["cone", "s1002-uic60"]
+    assert seen[0].model == ModelOptions() and seen[1].model == nonlinear_options()
+    assert seen[1].model.creep_saturation and seen[1].model.nonlinear_dampers
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--vehicle", "crh380a", "--contact", "s1002-uic60"], "needs `--vehicle manchester`"),
+        (["--fit-model", "cubic"], "invalid choice: 'cubic'"),
+        (["--contact", "s1002"], "invalid choice: 's1002'"),
+    ],
+)
+def test_monitor_bad_model_choice_exits_2_before_fitting(argv, message, tmp_path, capsys):
+    a = _blank_file(tmp_path / "a.csv")
+    assert _exit_code(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_model_choice_goes_with_data_only(capsys):
+    assert _exit_code(["monitor", "--history", "x", "--fit-model", "nonlinear"]) == 2
+    assert "`--contact` and `--fit-model` go with `--data`" in capsys.readouterr().err
 
 
 def test_demo_candidates_reach_the_options(tmp_path, monkeypatch):

@@ -9,7 +9,7 @@ from ..cost import window_lead_in
 from ..io import verdicts_record, write_report, write_verdicts
 from ..measure import sensors_from_layout, synthetic_measurement
 from ..monitor import WATCH_NOTE, misfit_warning, not_explained_warning, verdict_label
-from ..params import get_parameter, set_parameters
+from ..params import ModelOptions, get_parameter, set_parameters
 from ._common import text_table
 
 
@@ -18,8 +18,9 @@ SIGNAL_CHANNELS = 4  # channels shown in the measured-against-fitted figure
 
 def fitted_params(result, params):
     """The bogie at the estimate: every judged element or group at its estimate (a group's
-    members by one factor, as `monitor` fits them), the others nominal."""
-    values = {}
+    members by one factor, as `monitor` fits them), the nuisance parameters at theirs, the
+    others nominal."""
+    values = {name: n["estimate"] for name, n in result.fit.nuisance.items()}
     for v in result.verdicts:
         members = v.evidence.get("members") or []
         if v.evidence.get("identifiable") == "no" or not np.isfinite(v.std_error) or not members:
@@ -30,9 +31,10 @@ def fitted_params(result, params):
     return set_parameters(params, values) if values else params
 
 
-def fitted_signals(result, measurements, tracks, params, progress):
+def fitted_signals(result, measurements, tracks, params, progress, *, model=ModelOptions()):
     """The model's readings (n, c) per run at the estimate, on the tracks used in the fit
-    (simulated by `synthetic_measurement` without noise; the lead-in as `make_objective`'s)."""
+    (simulated by `synthetic_measurement` with the fitted equations `model`, without noise;
+    the lead-in as `make_objective`'s)."""
     at = fitted_params(result, params)
     out = []
     for k, (m, track) in enumerate(zip(measurements, tracks)):
@@ -51,6 +53,7 @@ def fitted_signals(result, measurements, tracks, params, progress):
             start_position=start,
             lead_in=window_lead_in(None, params, speed, start),
             sensors=sensors_from_layout(m.layout) if m.layout else None,
+            options=model,
         )
         by_name = dict(zip(model.channels, np.asarray(model.data).T))
         out.append(np.stack([by_name[c] for c in m.channels], axis=1))

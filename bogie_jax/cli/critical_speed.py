@@ -7,9 +7,9 @@ import jax.numpy as jnp
 
 from ..hunting import ramp_from_linear
 from ..model import critical_speed, stability_sweep
-from ..params import PARAMETER_SETS
 from ..plot import plot_stability
 from ._common import UsageError, require_suffix
+from ._model_choice import add_contact, params_with_contact
 from .simulate import add_vehicle
 
 
@@ -19,13 +19,7 @@ def add_parser(sub):
     p.add_argument("--v-min", type=float, default=5.0, help="lowest speed swept [m/s]")
     p.add_argument("--v-max", type=float, default=150.0, help="highest speed swept [m/s]")
     p.add_argument("--plot", default=None, help="write max Re(eigenvalue) vs speed to this PNG")
-    p.add_argument(
-        "--contact",
-        default="cone",
-        choices=("cone", "s1002-uic60", "worn-uic60"),
-        help="wheel-rail contact of the manchester set (default cone 1:20; s1002-uic60: S1002 "
-        "on UIC60 1:40; worn-uic60: a measured worn wheel on it)",
-    )
+    add_contact(p)
     p.add_argument(
         "--ramp-down",
         action="store_true",
@@ -41,13 +35,7 @@ def run(args, progress) -> int:
             f"need 0 < `--v-min` < `--v-max` <= 300 m/s, got {args.v_min:g} and {args.v_max:g}"
         )
     require_suffix("--plot", args.plot, ".png")
-    if args.contact != "cone" and args.params != "manchester":
-        raise UsageError(f"`--contact {args.contact}` needs `--params manchester`")
-    params = (
-        PARAMETER_SETS[args.params](contact=args.contact)
-        if args.params == "manchester"
-        else PARAMETER_SETS[args.params]()
-    )
+    params = params_with_contact(args.params, args.contact, vehicle_option="--params")
     progress.compiling("the stability sweep")
     result = critical_speed(params, v_min=args.v_min, v_max=args.v_max)
     if bool(result.found):

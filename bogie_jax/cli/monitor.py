@@ -8,6 +8,8 @@ every element over earlier results.
   order; per element `bogie_jax.monitor.trend` -> `trends.json`, `trends.png`, `trends.md`.
 - `--candidates NAME...` (with `--data`): the elements judged; `--list-elements` prints the
   names it takes and exits (`_candidates.py`).
+- `--contact` and `--fit-model` (with `--data`): the wheel-rail contact and the equations the
+  fit uses (`_model_choice.py`); `verdicts.json` records both.
 
 Without `--data` or `--history` there is nothing to judge: the command says so (exit code 2)
 and points at `bogie-jax demo`, which runs the built-in case.
@@ -39,6 +41,7 @@ from ..monitor import (
 )
 from ._candidates import add_options, check_candidates, list_elements
 from ._common import UsageError, text_table
+from ._model_choice import add_contact, add_fit_model, fit_model, params_with_contact
 from ._monitor_output import fitted_signals, verdict_table, write_outputs
 from ._names import lookup, names
 
@@ -127,6 +130,8 @@ def add_parser(sub):
         default=None,
         help="--data: covariance rule (default sandwich, gauss-newton with --track-error)",
     )
+    add_contact(p)
+    add_fit_model(p)
     add_options(p)
     return p
 
@@ -146,6 +151,8 @@ def run(args, progress) -> int:
         raise UsageError(
             "`--candidates` goes with `--data` (a trend follows the results' elements)"
         )
+    if args.data is None and (args.contact, args.fit_model) != ("cone", "linear"):
+        raise UsageError("`--contact` and `--fit-model` go with `--data`")
     if not 0 < args.false_alarm_rate < 0.5:
         raise UsageError(f"`--false-alarm-rate` = {args.false_alarm_rate!r} must lie in (0, 0.5)")
     if not 0 <= args.track_error <= 10:
@@ -160,7 +167,8 @@ def run(args, progress) -> int:
 
 def run_data(args, progress) -> int:
     date = _date(args.date)
-    params = lookup("vehicle", args.vehicle)()
+    lookup("vehicle", args.vehicle)  # an unknown name: its one-line error
+    params = params_with_contact(args.vehicle, args.contact, vehicle_option="--vehicle")
     candidates = check_candidates(params, args.candidates)
     for f in args.data + (args.track or []):
         if not Path(f).is_file():
@@ -184,6 +192,7 @@ def run_data(args, progress) -> int:
             track_error=1e-3 * args.track_error,
             noise=lookup("noise", args.noise),
             covariance=None if args.covariance is None else lookup("covariance", args.covariance),
+            model=fit_model(args.fit_model),
         )
         result = monitor(
             measurements,
@@ -198,11 +207,12 @@ def run_data(args, progress) -> int:
         progress.say(f"bogie-jax monitor: {e}")
         return 1
     progress.say(verdict_table(result))
-    fitted = fitted_signals(result, measurements, tracks, params, progress)
+    fitted = fitted_signals(result, measurements, tracks, params, progress, model=options.model)
     source = "bogie-jax monitor --data " + " ".join(args.data)
+    extra = {"data": list(args.data), "contact": args.contact, "fit_model": args.fit_model}
     paths = write_outputs(
         args.out, result, measurements, fitted, date=date, source=source, notes=[],
-        extra={"data": list(args.data)}, progress=progress,
+        extra=extra, progress=progress,
     )  # fmt: skip
     progress.say("wrote " + ", ".join(str(p) for p in paths))
     return 0 if result.explained else NOT_EXPLAINED

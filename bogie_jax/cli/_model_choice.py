@@ -1,0 +1,57 @@
+"""`--contact` (the wheel-rail contact the model uses) and `--fit-model` (the equations the
+monitor fits), shared by the commands that take them.
+
+`--contact` replaces the manchester set's 1:20 cone by a profile pair's contact table
+(`bogie_jax.params.manchester_benchmark(contact=...)`): fit the profile model where the wheels
+are real, since a cone cannot follow an S1002 wheel's contact (docs/benchmarks.md,
+`real-profile`). `--fit-model nonlinear` fits creep saturation and blow-off anti-yaw dampers
+(`bogie_jax.monitor.nonlinear_options`) where the linear model leaves the data not explained.
+"""
+
+from ..monitor import nonlinear_options
+from ..params import PARAMETER_SETS, ModelOptions
+from ._common import UsageError
+
+
+CONTACTS = ("cone", "s1002-uic60", "worn-uic60")
+PROFILE_SET = "manchester"  # the parameter set that carries the profile pairs
+FIT_MODELS = {"linear": ModelOptions, "nonlinear": nonlinear_options}
+
+
+def add_contact(p) -> None:
+    """Add `--contact` to the parser `p`."""
+    p.add_argument(
+        "--contact",
+        default="cone",
+        choices=CONTACTS,
+        help="wheel-rail contact of the manchester set (default cone 1:20; s1002-uic60: S1002 "
+        "on UIC60 1:40; worn-uic60: a measured worn wheel on it)",
+    )
+
+
+def add_fit_model(p) -> None:
+    """Add `--fit-model` to the parser `p`."""
+    p.add_argument(
+        "--fit-model",
+        default="linear",
+        choices=tuple(FIT_MODELS),
+        help="--data: the equations fitted (default linear; nonlinear: creep saturation and "
+        "blow-off anti-yaw dampers, several times slower)",
+    )
+
+
+def params_with_contact(vehicle: str, contact: str, *, vehicle_option: str):
+    """The parameter set `vehicle` with the wheel-rail `contact`.
+
+    **Raises:** `UsageError` for a profile contact on a set other than manchester (the one
+    whose wheels the profile pairs fit)."""
+    if contact == "cone":
+        return PARAMETER_SETS[vehicle]()
+    if vehicle != PROFILE_SET:
+        raise UsageError(f"`--contact {contact}` needs `{vehicle_option} {PROFILE_SET}`")
+    return PARAMETER_SETS[vehicle](contact=contact)
+
+
+def fit_model(name: str) -> ModelOptions:
+    """The `ModelOptions` that `--fit-model name` fits."""
+    return FIT_MODELS[name]()
