@@ -1,6 +1,7 @@
 """`bogie-jax demo` and `bogie-jax monitor` (issue 19 items 5 and 7 at the command line):
 `--history` trends of synthetic results, and bad input (one-line errors, exit code 2, before
-anything is compiled). Everything here reads and writes small files and compiles nothing.
+anything is compiled). Everything here reads and writes small files and compiles nothing; the
+choices of what is fitted are in tests/test_cli_monitor_choices.py.
 
 The demo end to end, its `verdicts.json` schema, its report and `monitor --data` replaying it
 are in tests/test_monitor.py: its runs have that module's run shapes, so in one process the
@@ -9,32 +10,22 @@ demo reuses the simulation and residual-Jacobian programs the module's `monitor`
 
 import json
 import math
-import types
 
 import numpy as np
 import pytest
 
 from bogie_jax.cli import main
 from bogie_jax.io import read_verdicts, write_report, write_verdicts
-from bogie_jax.monitor import (
-    DEFAULT_CANDIDATES,
-    ToleranceBand,
-    decision_z,
-    judge,
-    nonlinear_options,
-    same_measure,
-)
-from bogie_jax.params import ModelOptions, manchester_benchmark
+from bogie_jax.monitor import ToleranceBand, decision_z, judge, same_measure
+
+
+try:
+    from cli_files import blank_file, exit_code
+except ImportError:  # tests/ imported as a package
+    from tests.cli_files import blank_file, exit_code
 
 
 ALARMS = ("degraded", "failed")
-
-
-def _exit_code(argv):
-    try:
-        return main(argv)
-    except SystemExit as e:  # argparse's own errors
-        return e.code
 
 
 # --- --history -------------------------------------------------------------------------------
@@ -118,7 +109,7 @@ def test_history_gives_trends_with_a_drift_flag(tmp_path, capsys):
 )
 def test_history_refuses_bad_dates(tmp_path, capsys, dates, message):
     dirs = _history(tmp_path, dates)
-    assert _exit_code(["monitor", "--history", *dirs, "--out", str(tmp_path / "o")]) == 2
+    assert exit_code(["monitor", "--history", *dirs, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1, err
     assert not (tmp_path / "o").exists()
@@ -129,13 +120,13 @@ def test_history_refuses_mixed_layouts_and_bad_files(tmp_path, capsys):
     other = json.loads((tmp_path / "run2" / "verdicts.json").read_text())
     other["elements"] = [{"name": "secondary.left.cy"}]
     (tmp_path / "run2" / "verdicts.json").write_text(json.dumps(other))
-    assert _exit_code(["monitor", "--history", *dirs]) == 2
+    assert exit_code(["monitor", "--history", *dirs]) == 2
     assert "mixed layouts" in capsys.readouterr().err
     bad = tmp_path / "bad.json"
     bad.write_text('{"format": "something else"}')
-    assert _exit_code(["monitor", "--history", dirs[0], str(bad)]) == 2
+    assert exit_code(["monitor", "--history", dirs[0], str(bad)]) == 2
     assert "is not 'bogie_jax.verdicts/1'" in capsys.readouterr().err
-    assert _exit_code(["monitor", "--history", str(tmp_path / "nowhere")]) == 2
+    assert exit_code(["monitor", "--history", str(tmp_path / "nowhere")]) == 2
     assert "no such verdicts file" in capsys.readouterr().err
 
 
@@ -144,7 +135,7 @@ def test_history_refuses_a_zero_width_band(tmp_path, capsys):
     record = json.loads((tmp_path / "run2" / "verdicts.json").read_text())
     record["verdicts"][0]["tolerance_band"]["healthy"] = [4e5, 4e5]
     (tmp_path / "run2" / "verdicts.json").write_text(json.dumps(record))
-    assert _exit_code(["monitor", "--history", *dirs]) == 2
+    assert exit_code(["monitor", "--history", *dirs]) == 2
     assert "zero width" in capsys.readouterr().err
 
 
@@ -213,37 +204,15 @@ def test_same_measure_compares_members_and_their_weights():
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
-    assert _exit_code(argv) == 2
+    assert exit_code(argv) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1, err
 
 
-def _blank_file(path, channels=None, speed=30.0):
-    """A measurement file of zeros (nothing is simulated or compiled)."""
-    from bogie_jax.io import save_measurement
-    from bogie_jax.measure import Measurement, default_sensor_layout, layout_description
-    from bogie_jax.track import TrackReference
-
-    sensors = default_sensor_layout(manchester_benchmark())
-    if channels is not None:
-        sensors = tuple(s for s in sensors if s.name in channels)
-    n = 51
-    m = Measurement(
-        times=np.arange(n) / 100.0,
-        data=np.zeros((n, len(sensors))),
-        channels=[s.name for s in sensors],
-        units=[s.unit for s in sensors],
-        speed=speed,
-        track=TrackReference(spectrum="erri-low", seed=0, length=100.0),
-        layout=layout_description(sensors),
-    )
-    return str(save_measurement(path, m))
-
-
 def test_monitor_data_refuses_bad_input_before_fitting(tmp_path, capsys):
-    a = _blank_file(tmp_path / "a.csv")
-    b = _blank_file(tmp_path / "b.npz", speed=50.0)
-    frame = _blank_file(tmp_path / "frame.csv", channels=["frame_1L_y", "frame_1L_z"])
+    a = blank_file(tmp_path / "a.csv")
+    b = blank_file(tmp_path / "b.npz", speed=50.0)
+    frame = blank_file(tmp_path / "frame.csv", channels=["frame_1L_y", "frame_1L_z"])
     cases = [
         (["--data", a, frame], "mix sensor layouts"),
         (["--data", a, b, "--band", "0"], "band"),
@@ -252,7 +221,7 @@ def test_monitor_data_refuses_bad_input_before_fitting(tmp_path, capsys):
         (["--data", a, b, "--vehicle", "tgv"], "unknown `--vehicle` 'tgv'"),
     ]
     for argv, message in cases:
-        assert _exit_code(["monitor", *argv, "--out", str(tmp_path / "o")]) == 2, argv
+        assert exit_code(["monitor", *argv, "--out", str(tmp_path / "o")]) == 2, argv
         err = capsys.readouterr().err.strip()
         assert message in err and len(err.splitlines()) == 1, err
     assert not (tmp_path / "o").exists()
@@ -292,121 +261,3 @@ def test_report_marks_an_element_on_watch(tmp_path):
     assert "Watch: `yaw_dampers.left.c` (95 % interval above its band)" in text
     assert "| `yaw_dampers.left.c` | healthy\\* |" in text
     assert "\\* watch: the 95 % interval lies outside the healthy band" in text
-
-
-# --- --candidates and --list-elements ----------------------------------------------------------
-
-
-class _Captured(Exception):
-    """Raised by the stand-in `monitor` once it has the options (no fit is run)."""
-
-
-def _capture_monitor(monkeypatch, module, params_seen=None):
-    """Replace `monitor` in `bogie_jax.cli.<module>` by one that keeps its options (and its
-    parameters in `params_seen`) and raises `_Captured`; returns the list the options go to."""
-    seen = []
-
-    def fake(measurements, tracks, *, params, options, progress=None):
-        seen.append(options)
-        if params_seen is not None:
-            params_seen.append(params)
-        raise _Captured
-
-    monkeypatch.setattr(f"bogie_jax.cli.{module}.monitor", fake)
-    return seen
-
-
-@pytest.mark.parametrize("command", ["monitor", "demo"])
-def test_list_elements_prints_names_and_compiles_nothing(command, monkeypatch, capsys):
-    seen = _capture_monitor(monkeypatch, command)
-    monkeypatch.setattr("bogie_jax.cli.demo.scenario_measurements", None)  # never called
-    assert _exit_code([command, "--list-elements"]) == 0
-    lines = capsys.readouterr().out.splitlines()[1:]  # after the "what it runs on" line
-    marked = {line.split()[0] for line in lines if line.split()[1:] == ["default"]}
-    assert marked == set(DEFAULT_CANDIDATES) and not seen
-    names = {line.split()[0] for line in lines}
-    assert {"yaw_dampers.c", "primary.1L.kx", "secondary.left.kz"} <= names
-
-
-@pytest.mark.parametrize(
-    "argv, message",
-    [
-        (["--candidates", "primary.1L.kzz"], "did you mean primary.1L.kz"),
-        (["--candidates", "primary.3L.kz"], "unknown element '3L' in parameter 'primary.3L.kz'"),
-        (["--candidates", "yaw_dampers.c", "yaw_dampers.c"], "`--candidates` repeats"),
-    ],
-)
-@pytest.mark.parametrize("command", ["monitor", "demo"])
-def test_bad_candidates_exit_2_before_anything_runs(command, argv, message, tmp_path, capsys):
-    data = ["--data", str(tmp_path / "missing.csv")] if command == "monitor" else []
-    assert _exit_code([command, *data, *argv, "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert message in err and "`--candidates`" in err and len(err.splitlines()) == 1, err
-    assert not (tmp_path / "o").exists()
-
-
-def test_candidates_go_with_data_only(capsys):
-    assert _exit_code(["monitor", "--history", "x", "--candidates", "yaw_dampers.c"]) == 2
-    assert "`--candidates` goes with `--data`" in capsys.readouterr().err
-
-
-CHOSEN = ["yaw_dampers.c", "primary.1L.kz"]
-
-
-def test_monitor_candidates_reach_the_options(tmp_path, monkeypatch):
-    seen = _capture_monitor(monkeypatch, "monitor")
-    a = _blank_file(tmp_path / "a.csv")
-    with pytest.raises(_Captured):
-        main(["monitor", "--data", a, "--candidates", *CHOSEN, "--out", str(tmp_path / "o")])
-    assert seen[0].candidates == tuple(CHOSEN)
-
-
-def test_monitor_contact_and_fit_model_reach_the_fit(tmp_path, monkeypatch):
-    params = []
-    seen = _capture_monitor(monkeypatch, "monitor", params)
-    a = _blank_file(tmp_path / "a.csv")
-    with pytest.raises(_Captured):
-        main(["monitor", "--data", a, "--out", str(tmp_path / "o")])
-    with pytest.raises(_Captured):
-        argv = ["--contact", "s1002-uic60", "--fit-model", "nonlinear"]
-        main(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")])
-    assert [p.contact_geometry for p in params] == ["cone", "s1002-uic60"]
-    assert seen[0].model == ModelOptions() and seen[1].model == nonlinear_options()
-    assert seen[1].model.creep_saturation and seen[1].model.nonlinear_dampers
-
-
-@pytest.mark.parametrize(
-    "argv, message",
-    [
-        (["--vehicle", "crh380a", "--contact", "s1002-uic60"], "needs `--vehicle manchester`"),
-        (["--fit-model", "cubic"], "invalid choice: 'cubic'"),
-        (["--contact", "s1002"], "invalid choice: 's1002'"),
-    ],
-)
-def test_monitor_bad_model_choice_exits_2_before_fitting(argv, message, tmp_path, capsys):
-    a = _blank_file(tmp_path / "a.csv")
-    assert _exit_code(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert message in err, err
-    assert not (tmp_path / "o").exists()
-
-
-def test_model_choice_goes_with_data_only(capsys):
-    assert _exit_code(["monitor", "--history", "x", "--fit-model", "nonlinear"]) == 2
-    assert "`--contact` and `--fit-model` go with `--data`" in capsys.readouterr().err
-
-
-def test_demo_candidates_reach_the_options(tmp_path, monkeypatch):
-    """The chosen candidates reach `monitor` and the programs compiled beside the simulation
-    (`compile_programs`), the same options."""
-    seen = _capture_monitor(monkeypatch, "demo")
-    blank = lambda *a, **k: [types.SimpleNamespace(track=None)]
-    monkeypatch.setattr("bogie_jax.cli.demo.scenario_measurements", blank)
-    monkeypatch.setattr("bogie_jax.cli.demo.recorded_track", lambda *a, **k: None)
-    compiled = []
-    fake_compile = lambda layout, tracks, *, params, options: compiled.append(options)
-    monkeypatch.setattr("bogie_jax.cli.demo.compile_programs", fake_compile)
-    with pytest.raises(_Captured):
-        main(["demo", "--noise", "0", "--candidates", *CHOSEN, "--out", str(tmp_path / "o")])
-    assert seen[0].candidates == tuple(CHOSEN)
-    assert compiled == seen
