@@ -31,9 +31,9 @@ def fitted_params(result, params):
     return set_parameters(params, values) if values else params
 
 
-def fitted_signals(result, measurements, tracks, params, progress, *, model=ModelOptions()):
+def fitted_signals(result, measurements, tracks, params, progress, *, equations=ModelOptions()):
     """The model's readings (n, c) per run at the estimate, on the tracks used in the fit
-    (simulated by `synthetic_measurement` with the fitted equations `model`, without noise;
+    (simulated by `synthetic_measurement` with the fitted `equations`, without noise;
     the lead-in as `make_objective`'s)."""
     at = fitted_params(result, params)
     out = []
@@ -53,7 +53,7 @@ def fitted_signals(result, measurements, tracks, params, progress, *, model=Mode
             start_position=start,
             lead_in=window_lead_in(None, params, speed, start),
             sensors=sensors_from_layout(m.layout) if m.layout else None,
-            options=model,
+            options=equations,
         )
         by_name = dict(zip(model.channels, np.asarray(model.data).T))
         out.append(np.stack([by_name[c] for c in m.channels], axis=1))

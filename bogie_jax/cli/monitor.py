@@ -207,7 +207,7 @@ def run_data(args, progress) -> int:
         progress.say(f"bogie-jax monitor: {e}")
         return 1
     progress.say(verdict_table(result))
-    fitted = fitted_signals(result, measurements, tracks, params, progress, model=options.model)
+    fitted = fitted_signals(result, measurements, tracks, params, progress, equations=options.model)
     source = "bogie-jax monitor --data " + " ".join(args.data)
     extra = {"data": list(args.data), "contact": args.contact, "fit_model": args.fit_model}
     paths = write_outputs(
