@@ -79,6 +79,7 @@ CONTACTS = {  # mode: (contact of the data, contact of the fit)
     "real-profile": ("s1002-uic60", "cone"),
     "worn-profile": ("worn-uic60", "s1002-uic60"),
 }
+CONTACT_NAMES = ("cone", "s1002-uic60", "worn-uic60")  # `manchester_benchmark(contact=...)`
 COVERAGE = (0.90, 0.98)  # issue 51's targets
 CLEAN_CASES = 0.95
 HEADLINE_FOUND = 0.90
@@ -139,12 +140,14 @@ def draw(rng) -> dict:
     }
 
 
-def bogies(on, case: dict) -> dict:
-    """The bogies of a case (`detection.draw_case`'s `case`): `nominal` (the fit's `params`),
+def bogies(on, case: dict, *, fit_contact: str | None = None) -> dict:
+    """The bogies of a case (`detection.draw_case`'s `case`): `nominal` (the fit's `params`,
+    on `fit_contact` where given, else on the mode's contact of the fit, `CONTACTS`),
     `truth`, `without_unjudged` (the truth without the unjudged defect, `None` without one),
     the candidate `scenario` (`DefectScenario`), `changed` element names, the case's `label` for
     the tables and its `mismatch` record (what applies)."""
-    truth_contact, fit_contact = next((CONTACTS[m] for m in CONTACTS if m in on), ("cone",) * 2)
+    truth_contact, mode_fit = next((CONTACTS[m] for m in CONTACTS if m in on), ("cone",) * 2)
+    fit_contact = fit_contact or mode_fit
     nominal = manchester_benchmark(contact=fit_contact)
     base = manchester_benchmark(contact=truth_contact)
     if "worn-wheels" in on:

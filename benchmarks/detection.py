@@ -39,7 +39,8 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
   defective cases together with the candidate defect);
 - `none`: no imperfection; `all`: (a)-(f); `offset` is another name of `track`.
 
-**Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal,
+**Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal (on the mode's
+contact of the fit, or --fit-contact's),
 options=MonitorOptions(track_error=<the records' error RMS: --track-error's and the track
 modes'>, model=<--fit-model's: the linear model by default>))`, default options otherwise):
 truth, verdicts (with every `std_error_*` component of their evidence, and whether an alarm
@@ -84,6 +85,8 @@ Run (from the repository root):
                         # the records' 0.3 mm error in the intervals, its bias removed
     python benchmarks/detection.py --imperfection worn-wheels --duration 2 --nuisance none \
         --out worn-wheels_no_nuisance         # without the contact's model-form nuisance
+    python benchmarks/detection.py --imperfection real-profile --fit-contact s1002-uic60 \
+        --duration 2 --cases 20 --workers 2 --out real-profile_profile_fit  # the table fitted
 Writes results/detection/<out>.json (records + aggregates + environment) and
 results/detection/<out>.md; <out> is `default_imperfections` for the default imperfections,
 else the imperfections' names joined by `-`.
@@ -198,6 +201,7 @@ def config_of(args) -> dict:
         **({"track_error_mm": float(args.track_error)} if args.track_error else {}),
         **({"nuisance": list(args.nuisance)} if args.nuisance is not None else {}),
         **({"fit_model": args.fit_model} if args.fit_model != "linear" else {}),
+        **({"fit_contact": args.fit_contact} if args.fit_contact is not None else {}),
         **_mismatch.config(args.imperfections),
     }
 
@@ -234,7 +238,7 @@ def case_inputs(cfg: dict, index: int) -> dict:
     `runs`, the recorded `tracks` and the `options`."""
     case = draw_case(cfg, index)
     on = set(cfg["imperfections"])
-    bogie = _mismatch.bogies(on, case)
+    bogie = _mismatch.bogies(on, case, fit_contact=cfg.get("fit_contact"))
     nominal, truth, mismatch = bogie["nominal"], bogie["truth"], dict(bogie["mismatch"])
     model = nonlinear_options() if "nonlinear" in on else ModelOptions()
     duration = cfg["duration_s"]
@@ -780,6 +784,11 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--fit-model", choices=("linear", "nonlinear"), default="linear",
         help="the monitor's model: `linear` (default, `ModelOptions()`) or `nonlinear` (creep "
         "saturation and blow-off anti-yaw dampers, `nonlinear_options()`)",
+    )  # fmt: skip
+    p.add_argument(
+        "--fit-contact", choices=_mismatch.CONTACT_NAMES, default=None,
+        help="the contact of the monitor's model (default: the mode's, the cone unless "
+        "worn-profile: s1002-uic60)",
     )  # fmt: skip
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
