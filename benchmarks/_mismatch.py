@@ -51,6 +51,7 @@ import jax.random as jr
 import numpy as np
 
 from benchmarks._common import coverage_reading
+from bogie_jax.contact import PROFILE_PAIRS
 from bogie_jax.monitor import (
     DEFAULT_CANDIDATES,
     DEFECT_SCENARIOS,
@@ -79,7 +80,7 @@ CONTACTS = {  # mode: (contact of the data, contact of the fit)
     "real-profile": ("s1002-uic60", "cone"),
     "worn-profile": ("worn-uic60", "s1002-uic60"),
 }
-CONTACT_NAMES = ("cone", "s1002-uic60", "worn-uic60")  # `manchester_benchmark(contact=...)`
+CONTACT_NAMES = ("cone", *PROFILE_PAIRS)  # `manchester_benchmark(contact=...)`
 COVERAGE = (0.90, 0.98)  # issue 51's targets
 CLEAN_CASES = 0.95
 HEADLINE_FOUND = 0.90

@@ -8,12 +8,13 @@ are real, since a cone cannot follow an S1002 wheel's contact (docs/benchmarks.m
 (`bogie_jax.monitor.nonlinear_options`) where the linear model leaves the data not explained.
 """
 
+from ..contact import PROFILE_PAIRS
 from ..monitor import nonlinear_options
 from ..params import PARAMETER_SETS, ModelOptions
 from ._common import UsageError
 
 
-CONTACTS = ("cone", "s1002-uic60", "worn-uic60")
+CONTACTS = ("cone", *PROFILE_PAIRS)
 PROFILE_SET = "manchester"  # the parameter set that carries the profile pairs
 FIT_MODELS = {"linear": ModelOptions, "nonlinear": nonlinear_options}
 

@@ -20,7 +20,8 @@ def fitted_params(result, params):
     """The bogie at the estimate: every judged element or group at its estimate (a group's
     members by one factor, as `monitor` fits them), the nuisance parameters at theirs, the
     others nominal."""
-    values = {name: n["estimate"] for name, n in result.fit.nuisance.items()}
+    nuisance = result.fit.nuisance.items()
+    values = {name: n["estimate"] for name, n in nuisance if np.isfinite(n["estimate"])}
     for v in result.verdicts:
         members = v.evidence.get("members") or []
         if v.evidence.get("identifiable") == "no" or not np.isfinite(v.std_error) or not members:
