@@ -10,8 +10,9 @@ are real, since a cone cannot follow an S1002 wheel's contact (docs/benchmarks.m
 
 from ..contact import PROFILE_PAIRS
 from ..monitor import nonlinear_options
-from ..params import PARAMETER_SETS, ModelOptions
+from ..params import ModelOptions
 from ._common import UsageError
+from ._names import lookup
 
 
 CONTACTS = ("cone", *PROFILE_PAIRS)
@@ -44,13 +45,14 @@ def add_fit_model(p) -> None:
 def params_with_contact(vehicle: str, contact: str, *, vehicle_option: str):
     """The parameter set `vehicle` with the wheel-rail `contact`.
 
-    **Raises:** `UsageError` for a profile contact on a set other than manchester (the one
-    whose wheels the profile pairs fit)."""
+    **Raises:** `UsageError` for an unknown set, or a profile contact on a set other than
+    manchester (the one whose wheels the profile pairs fit)."""
+    make = lookup("vehicle", vehicle, vehicle_option)
     if contact == "cone":
-        return PARAMETER_SETS[vehicle]()
+        return make()
     if vehicle != PROFILE_SET:
         raise UsageError(f"`--contact {contact}` needs `{vehicle_option} {PROFILE_SET}`")
-    return PARAMETER_SETS[vehicle](contact=contact)
+    return make(contact=contact)
 
 
 def fit_model(name: str) -> ModelOptions:

@@ -167,7 +167,6 @@ def run(args, progress) -> int:
 
 def run_data(args, progress) -> int:
     date = _date(args.date)
-    lookup("vehicle", args.vehicle)  # an unknown name: its one-line error
     params = params_with_contact(args.vehicle, args.contact, vehicle_option="--vehicle")
     candidates = check_candidates(params, args.candidates)
     for f in args.data + (args.track or []):
