@@ -254,6 +254,8 @@ def report(records, outcomes, by_element: dict, headline: str, rate) -> tuple[di
         "headline_found": found, "explained_known": len(known), "not_explained": unexplained,
         "size_mae": float(np.mean(sizes)) if sizes else None, "coverage": cover,
         "withheld_cases": sum(_withheld(r) for r in records),
+        "white_share_cases": sum(_share(r, "white") > 0 for r in records),
+        "long_wave_cases": sum(_share(r, "long_wave") > 0 for r in records),
     }  # fmt: skip
     in_range = [k for k, c in cover.items() if COVERAGE[0] <= c <= COVERAGE[1]]
     span = (
@@ -275,7 +277,9 @@ def report(records, outcomes, by_element: dict, headline: str, rate) -> tuple[di
         "group's alarm counts only where no member changed). Found: an alarm on the damper (or a "
         "group holding it). Not explained: `MonitorResult.explained` is false. Size error: mean "
         "absolute error of the estimated relative change of the changed candidates [percentage "
-        f"points]. Cases with an alarm withheld as not explained: {out['withheld_cases']}.",
+        f"points]. Cases with an alarm withheld as not explained: {out['withheld_cases']}. "
+        "Cases whose records' error the monitor took as partly white over the recording band: "
+        f"{out['white_share_cases']}; as partly long-wave drift: {out['long_wave_cases']}.",
     ]
     unjudged = [r for r in records if (r.get("mismatch") or {}).get("signal_change")]
     if unjudged:
@@ -288,6 +292,12 @@ def report(records, outcomes, by_element: dict, headline: str, rate) -> tuple[di
 
 def _candidate(rec: dict) -> str:
     return rec.get("candidate_scenario", rec["case"]["scenario"])
+
+
+def _share(rec: dict, shape: str) -> float:
+    """The share of the records' error the monitor took as `shape` (`white`, `long_wave`); 0
+    where the record predates the field."""
+    return (rec.get("fit") or {}).get(f"track_error_{shape}_share") or 0.0
 
 
 def _withheld(rec: dict) -> bool:

@@ -319,6 +319,8 @@ def run_case(cfg: dict, index: int) -> dict:
         "runs_used": result.fit.runs_used,
         "horizons": list(result.fit.horizons),
         "misfit_ratio": result.fit.misfit_ratio,
+        "track_error_white_share": result.fit.track_error_white_share,
+        "track_error_long_wave_share": result.fit.track_error_long_wave_share,
         "channel_noise": [list(c) for c in result.fit.channel_noise],
     }
     record["runs"] = [

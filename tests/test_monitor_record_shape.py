@@ -7,20 +7,24 @@ import types
 
 import numpy as np
 import pytest
+import scipy.integrate
 import scipy.stats
 
 from bogie_jax.monitor import (
+    LONG_BAND,
+    LONG_SHARES,
     RECORD_BAND,
     GoodnessOfFit,
     Misfit,
     RecordError,
     Sampling,
+    TrackErrorEffect,
     mixed_effect,
     mixed_record_term,
     track_error_effect,
     white_share,
 )
-from bogie_jax.track import TrackIrregularity
+from bogie_jax.track import FADE_LENGTH, TrackIrregularity, TrackReference, fade_envelope
 
 
 SEMI = 0.7465  # [m] contact semi-distance b_0
@@ -32,25 +36,67 @@ def _record(rng, n):
     return np.cumsum(rng.standard_normal((n, 3)), axis=0) * np.array([1e-4, 2e-4, 1e-4])
 
 
-def test_a_band_error_is_white_over_the_band_with_the_stated_level():
-    """Oracle: the discrete Fourier transform. Over 400 draws the mean power of every bin inside
-    the band is the same (chi^2_2 per draw: relative spread 1 / sqrt(400) = 5 % per bin, held
-    to 25 %), none lies outside, each draw has the stated RMS per channel exactly, and a
-    channel without power in the record gets none."""
+def _band_correlation(lag, band):
+    """The autocorrelation at `lag` [m] of a process white over the wavelength `band` [m]:
+    (sin 2 pi k_hi lag - sin 2 pi k_lo lag) / (2 pi lag (k_hi - k_lo)), k = 1 / wavelength."""
+    k_lo, k_hi = 1.0 / band[1], 1.0 / band[0]
+    return (np.sin(2 * np.pi * k_hi * lag) - np.sin(2 * np.pi * k_lo * lag)) / (
+        2 * np.pi * lag * (k_hi - k_lo)
+    )
+
+
+def _curvature_share(band):
+    """E (x_{t+1} - 2 x_t + x_{t-1})^2 / E x^2 of a process white over `band` sampled every
+    `DS`: the integral of (2 - 2 cos 2 pi k DS)^2 over the band's wavenumbers over its width
+    (scipy quadrature)."""
+    k_lo, k_hi = 1.0 / band[1], 1.0 / band[0]
+    value, _ = scipy.integrate.quad(lambda k: (2 - 2 * np.cos(2 * np.pi * k * DS)) ** 2, k_lo, k_hi)
+    return value / (k_hi - k_lo)
+
+
+@pytest.mark.parametrize("band, n", [(RECORD_BAND, 1200), (LONG_BAND, 4800), (LONG_BAND, 480)])
+def test_a_band_error_is_white_over_the_band_with_the_stated_level(band, n):
+    """Oracles: the autocorrelation of a process white over the band (`_band_correlation`) and
+    its second differences' variance (`_curvature_share`, scipy quadrature), over 400 draws on
+    records of 300 m and 1200 m, and on a record of 120 m, shorter than the long band's waves
+    (only the curvature: a draw scaled to its record's RMS has a biased correlation there).
+    Each draw has the stated RMS per channel exactly, and a channel without power in the
+    record gets none."""
     rng = np.random.default_rng(0)
-    n, rms = 1200, 2e-4
+    rms = 2e-4
     values = _record(rng, n)
     values[:, 2] = 0.0
     track = TrackIrregularity(0.0, DS, values)
-    error = RecordError(rms, SEMI, RECORD_BAND)
-    draws = np.array([error.draw(track, rng) for _ in range(400)])
-    np.testing.assert_allclose(np.sqrt(np.mean(draws**2, axis=1))[:, :2], rms, rtol=1e-12)
-    assert np.all(draws[:, :, 2] == 0.0)
-    power = np.mean(np.abs(np.fft.rfft(draws[:, :, :2], axis=1)) ** 2, axis=0)
-    wavenumber = np.fft.rfftfreq(n, d=DS)
-    inside = (wavenumber >= 1 / RECORD_BAND[1]) & (wavenumber <= 1 / RECORD_BAND[0])
-    assert inside.sum() > 80 and np.all(power[~inside] < 1e-20 * power[inside].mean())
-    np.testing.assert_allclose(power[inside] / power[inside].mean(axis=0), 1.0, atol=0.25)
+    error = RecordError(rms, SEMI, band)
+    draws = np.array([error.draw(track, rng) for _ in range(400)])[:, :, :2]
+    np.testing.assert_allclose(np.sqrt(np.mean(draws**2, axis=1)), rms, rtol=1e-12)
+    curvature = np.mean(np.diff(draws, 2, axis=1) ** 2) / np.mean(draws[:, 1:-1] ** 2)
+    assert curvature == pytest.approx(_curvature_share(band), rel=0.1)
+    if n * DS >= 2 * band[1]:
+        for lag in (1, 4, 12, 40, 120):
+            got = np.sum(draws[:, lag:] * draws[:, :-lag]) / np.sum(draws[:, lag:] ** 2)
+            assert got == pytest.approx(_band_correlation(lag * DS, band), abs=0.04), lag
+    zero = np.array([error.draw(track, rng)[:, 2] for _ in range(3)])
+    assert np.all(zero == 0.0)
+
+
+def test_a_band_error_fades_in_and_out_as_a_synthetic_record_does():
+    """A synthetic record starts and ends at zero (its fades): so does a band error drawn for
+    it (oracle: `bogie_jax.track.fade_envelope`'s zeros and ones), at the stated RMS; over the
+    record's middle it is the unfaded error's shape."""
+    reference = TrackReference(spectrum="erri-low", seed=3, length=150.0)
+    track = reference.build()
+    for band in (RECORD_BAND, LONG_BAND):
+        error = RecordError(3e-4, SEMI, band)
+        faded = error.draw(track, np.random.default_rng(1), reference)
+        plain = error.draw(track, np.random.default_rng(1))
+        np.testing.assert_array_equal(faded[[0, -1]], 0.0)
+        assert np.all(plain[0] != 0.0)
+        np.testing.assert_allclose(np.sqrt(np.mean(faded**2, axis=0))[:2], 3e-4, rtol=1e-12)
+        s = track.ds * np.arange(faded.shape[0])
+        middle = fade_envelope(s, FADE_LENGTH) == 1.0
+        ratio = faded[middle] / plain[middle]
+        np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0], ratio.shape), rtol=1e-9)
 
 
 class _Mixture:
@@ -114,11 +160,12 @@ def test_the_mixed_term_is_the_term_of_the_mixed_error():
     assert mixed_effect(shaped, white, 1.0).white_share == 1.0
 
 
-def _goodness(p_values):
+def _goodness(p_values, p_lower=None):
+    p_lower = [float("nan")] * len(p_values) if p_lower is None else p_lower
     tests = tuple(
         Misfit(run=k, group=f"g{k}", channels=("c",), statistic=1.0, expected=1.0,
-               track_record=0.0, ratio=1.0, p_value=float(p))
-        for k, p in enumerate(p_values)
+               track_record=0.0, ratio=1.0, p_value=float(p), p_lower=float(q))
+        for k, (p, q) in enumerate(zip(p_values, p_lower))
     )  # fmt: skip
     return GoodnessOfFit(tests, 0.05)
 
@@ -148,15 +195,73 @@ def test_the_white_share_is_the_least_surprising_of_the_grid(centres, widths):
     assert 0.0 <= got <= 1.0
 
 
+@pytest.mark.parametrize(
+    "observed",
+    [
+        [0.003, 0.002, 0.005, 0.004],  # a drift: the data hold 0.2-0.5 % of the shaped misfit
+        [1.0, 0.9, 1.1, 1.0],  # the track shape fits: no long waves
+        [0.3, 0.5, 0.2, 0.4],  # a part of the error is long-wave
+    ],
+)
+def test_the_long_wave_share_is_the_least_surprising_in_both_tails(observed):
+    """Oracle: scipy's Fisher combination of each group's two-sided p-value, a group's log
+    statistic normal about the log of its null mean 1 - w (the long-wave term leaving a
+    thousandth of the shaped one's misfit), minimised over `LONG_SHARES` by brute force; the
+    grid runs from 0 to 1, 1 - w down to 1e-4."""
+    x = np.log(np.array(observed))
+
+    def tails(w):
+        z = (x - np.log(1.0 - w + 0.001 * w)) / 0.3
+        return scipy.stats.norm.sf(z), scipy.stats.norm.cdf(z)
+
+    def two_sided(w):
+        p, q = tails(w)
+        return np.maximum(np.minimum(2 * np.minimum(p, q), 1.0), 1e-300)
+
+    combined = [scipy.stats.combine_pvalues(two_sided(w), method="fisher")[0] for w in LONG_SHARES]
+    got = white_share(lambda w: _goodness(*tails(w)), LONG_SHARES, two_sided=True)
+    assert got == pytest.approx(LONG_SHARES[int(np.argmin(combined))], abs=1e-12)
+    assert LONG_SHARES[0] == 0.0 and LONG_SHARES[-1] == 1.0
+    assert np.all(np.diff(LONG_SHARES) > 0) and 1.0 - LONG_SHARES[-2] == pytest.approx(1e-4)
+    if observed[0] < 0.01:
+        assert 0.99 < got < 1.0  # the drift: nearly all long-wave
+    elif observed[0] == 1.0:
+        assert got < 0.3
+
+
+def test_a_long_wave_mixture_records_its_share_in_its_own_field():
+    """`mixed_effect` with `share="long_wave_share"`: the long-wave share in its field, the
+    white share 0; the covariance mixes linearly (oracle: the two terms' weighted sum)."""
+    rng = np.random.default_rng(7)
+    n, m = 3, 20
+
+    def term(scale):
+        first = rng.standard_normal((8, n)) * scale
+        return TrackErrorEffect(
+            covariance=first.T @ first / 8, bias=np.full(n, scale), draws=8,
+            misfit_ss=scale**2, bias_by_step=np.full((2, n), scale), refit_draws=4,
+            misfits=rng.standard_normal((8, m)) * scale, bias_variance=np.full(n, scale**2),
+        )  # fmt: skip
+
+    shaped, long = term(1.0), term(0.01)
+    mixed = mixed_effect(shaped, long, 0.99, "long_wave_share")
+    assert mixed.long_wave_share == 0.99 and mixed.white_share == 0.0
+    np.testing.assert_allclose(mixed.covariance, 0.01 * shaped.covariance + 0.99 * long.covariance)
+    np.testing.assert_allclose(mixed.bias, 0.01 * 1.0 + 0.99 * 0.01)
+    assert mixed_effect(shaped, long, 1.0, "long_wave_share").long_wave_share == 1.0
+    assert LONG_BAND[0] == RECORD_BAND[1]  # the long waves begin where the record's band ends
+
+
 def test_the_white_share_breaks_ties_towards_the_track_shape():
     """Every share equally surprising (every p-value at the floor): no white share."""
     assert white_share(lambda w: _goodness([0.0, 0.0])) == 0.0
 
 
-@pytest.mark.parametrize("white", [0.0, 0.85])
-def test_the_record_errors_shape_is_told_in_the_summary_json_and_report(white, tmp_path):
-    """The white share (`FitSummary.track_error_white_share`) in the result's summary,
-    `verdicts.json` and the report's rules (constructed result: nothing is simulated)."""
+@pytest.mark.parametrize("white, long", [(0.0, 0.0), (0.85, 0.0), (0.0, 0.9999)])
+def test_the_record_errors_shape_is_told_in_the_summary_json_and_report(white, long, tmp_path):
+    """The white and long-wave shares (`FitSummary.track_error_white_share`,
+    `track_error_long_wave_share`) in the result's summary, `verdicts.json` and the report's
+    rules (constructed result: nothing is simulated)."""
     from bogie_jax.io import verdicts_record, write_report
     from bogie_jax.monitor import FitSummary, MonitorResult, ToleranceBand, judge
 
@@ -166,14 +271,19 @@ def test_the_record_errors_shape_is_told_in_the_summary_json_and_report(white, t
         names=("yaw_dampers.left.c",), status="converged", steps=3, evaluations=4, cost=1.0,
         noise_variance=1.0, sigma2=1.0, rank=1, condition_number=1.0, runs_used=1,
         track_error=3e-4, track_error_draws=16, track_error_white_share=white,
+        track_error_long_wave_share=long,
     )  # fmt: skip
     result = MonitorResult((verdict,), (), fit, (), 0.05, {})
     told = "85 % of its variance white over the recording band"
+    drift = "99.99 % of its variance long-wave drift (70-200 m"
     assert (told in result.table()) is (white > 0)
+    assert (drift in result.table()) is (long > 0)
     record = verdicts_record(result, date="2026-11-29")
     assert record["fit"]["track_error_white_share"] == white
+    assert record["fit"]["track_error_long_wave_share"] == long
     text = write_report(tmp_path / "report.md", record).read_text()
     assert "0.3 mm RMS included" in text
     assert (told in text) is (white > 0)
+    assert (drift in text) is (long > 0)
     assert ("shaped like the track" in text) is True
     assert ("not taken as explained by it" in result.table()) is (white > 0)

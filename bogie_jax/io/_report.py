@@ -26,7 +26,7 @@ import math
 import os
 from pathlib import Path
 
-from ..monitor import WATCH_NOTE, misfit_warning, not_explained_line, verdict_label
+from ..monitor import LONG_BAND, WATCH_NOTE, misfit_warning, not_explained_line, verdict_label
 
 
 VERDICTS_FORMAT = "bogie_jax.verdicts/1"
@@ -245,12 +245,19 @@ def _record_error(fit) -> str:
     if not rms > 0:
         return ""
     white = fit.get("track_error_white_share") or 0.0
-    shape = (
-        f", {100 * white:.0f} % of its variance white over the recording band (the misfit "
-        "calls for it), the rest shaped like the track"
-        if white > 0
-        else ", shaped like the track"
-    )
+    long = fit.get("track_error_long_wave_share") or 0.0
+    shape = ", shaped like the track"
+    if white > 0:
+        shape = (
+            f", {100 * white:.0f} % of its variance white over the recording band (the misfit "
+            "calls for it), the rest shaped like the track"
+        )
+    elif long > 0:
+        shape = (
+            f", {100 * long:.4g} % of its variance long-wave drift ({LONG_BAND[0]:g}-"
+            f"{LONG_BAND[1]:g} m; the residuals hold far less misfit than the track's shape "
+            "leaves), the rest shaped like the track"
+        )
     return f"; the track records' error of {1e3 * rms:.3g} mm RMS included{shape}"
 
 

@@ -95,7 +95,10 @@ from ._nuisance import (
 from ._options import MonitorOptions as MonitorOptions
 from ._profile import ProfilePoint as ProfilePoint, profile_point as profile_point
 from ._record_shape import (
+    LONG_BAND as LONG_BAND,
+    LONG_SHARES as LONG_SHARES,
     RECORD_BAND as RECORD_BAND,
+    long_wave_term as long_wave_term,
     mixed_effect as mixed_effect,
     mixed_record_term as mixed_record_term,
     white_share as white_share,

@@ -41,7 +41,10 @@ group's T / (mean) is exactly F(2 n_L, 2 n_H). On white noise the per-test rejec
 The run-group tests are decided together at the monitor's `false_alarm_rate` (Holm's step-down
 Bonferroni, Scand. J. Statist. 6 (1979) 65) and the data are not explained where one rejects;
 a misfit whose excess over the noise is under `MIN_EXCESS` of the sensors' stated noise
-variance per bin is not called (a fit of noise-free data converged to a tiny residual).
+variance per bin is not called (a fit of noise-free data converged to a tiny residual). The
+same null's lower tail, decided the same way (`GoodnessOfFit.overstated`), finds run-groups
+that hold far less misfit than the records' error as told should leave: an error whose power
+lies where the bogie hardly responds (`_record_shape.py`).
 `benchmarks/goodness_of_fit.py` measures the false-alarm rate and power.
 """
 
@@ -101,8 +104,9 @@ class Misfit:
     """One run-group test: `run`, `group` and its `channels`; `statistic` T (module docstring:
     the low band's power over the noise level, summed over the group's channels), `expected`
     its null mean (the channels plus `track_record`, the records' error share), `ratio` = T /
-    `expected` (about 1 when the fit explains the data), `p_value`, and whether the family-wise
-    test `rejected` it."""
+    `expected` (about 1 when the fit explains the data), `p_value` (of a T this large or
+    larger), `p_lower` (of a T this small or smaller), and whether the family-wise test
+    `rejected` it."""
 
     run: int
     group: str
@@ -113,6 +117,7 @@ class Misfit:
     ratio: float
     p_value: float
     rejected: bool = False
+    p_lower: float = float("nan")
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -139,6 +144,13 @@ class GoodnessOfFit:
     def misfits(self) -> tuple[Misfit, ...]:
         """The run-groups whose test rejects: where the fit does not explain the data."""
         return tuple(t for t in self.tests if t.rejected)
+
+    @property
+    def overstated(self) -> tuple[Misfit, ...]:
+        """The run-groups whose lower-tail test (`p_lower`, Holm at `alpha`) rejects: they hold
+        less misfit than the noise and the records' error as told allow."""
+        reject = holm([t.p_lower for t in self.tests], self.alpha)
+        return tuple(t for t, x in zip(self.tests, reject) if x)
 
     def to_dict(self) -> dict:
         return {
@@ -193,10 +205,10 @@ def null_distribution(q, n_low: int, n_high: int) -> tuple[float, float, float, 
 
 
 def group_test(observed, draws, n_low: int, n_high: int, stated) -> tuple[float, ...]:
-    """(T, expected, track-record share, p-value) of one run-group (module docstring).
-    `observed`: (low, high) band means (c,) of the residual; `draws`: (low, high) (D, c) of the
-    track records' error draws or `None`; `stated`: (c,) the noise variance per bin at the
-    sensors' stated noise (weights included)."""
+    """(T, expected, track-record share, p-value, lower-tail p-value) of one run-group (module
+    docstring). `observed`: (low, high) band means (c,) of the residual; `draws`: (low, high)
+    (D, c) of the track records' error draws or `None`; `stated`: (c,) the noise variance per
+    bin at the sensors' stated noise (weights included)."""
     low, high = observed
     c = low.size
     if draws is None or draws[0].shape[0] < 4:
@@ -207,11 +219,12 @@ def group_test(observed, draws, n_low: int, n_high: int, stated) -> tuple[float,
     t = float(np.sum(low / s2))
     mean, kappa, nu_low, nu_high = null_distribution(q_low / s2, n_low, n_high)
     p = float(scipy.stats.f.sf(t / kappa, nu_low, nu_high))
+    p_lower = float(scipy.stats.f.cdf(t / kappa, nu_low, nu_high))
     excess = float(np.sum(low - s2 - q_low.mean(axis=0)) / np.sum(stated))
     if excess < MIN_EXCESS:
         p = 1.0  # a misfit too small for the sensors to see at their stated noise
     share = float(np.sum(q_low.mean(axis=0) / s2)) * mean / (c + np.sum(q_low.mean(axis=0) / s2))
-    return t, mean, share, p
+    return t, mean, share, p, p_lower
 
 
 def holm(p_values, alpha: float) -> np.ndarray:
@@ -255,11 +268,11 @@ def goodness_of_fit(r, runs: RunChannels, rows, measurements, misfits, alpha: fl
         for group, idx in channel_groups(m):
             pick = list(idx)
             sub = None if draws is None else (draws[0][:, pick], draws[1][:, pick])
-            t, mean, share, p = group_test(
+            t, mean, share, p, p_lower = group_test(
                 (low[pick], high[pick]), sub, n_low, n_high, stated[pick]
             )
             channels = tuple(m.channels[j] for j in idx)
-            tests.append(Misfit(k, group, channels, t, mean, share, t / mean, p))
+            tests.append(Misfit(k, group, channels, t, mean, share, t / mean, p, p_lower=p_lower))
     if not tests:
         note = (
             f"not tested: no run has {MIN_BINS} frequency bins in {LOW_BAND[0]:g}-{LOW_BAND[1]:g} "

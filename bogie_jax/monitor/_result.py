@@ -6,6 +6,7 @@ import math
 
 from ._elements import ElementStatus
 from ._goodness import GoodnessOfFit, not_explained_warning
+from ._record_shape import LONG_BAND
 from ._verdict import WATCH_NOTE, Verdict, verdict_label
 
 
@@ -87,7 +88,9 @@ class FitSummary:
     the fit explains the data as well as those errors allow; NaN without a `track_error`);
     `track_error_white_share`: the share of the records' error variance taken as white over
     the recording band rather than shaped like the track (`_record_shape.py`; 0 where the fit
-    explains the data with the track-shaped error; the data are not taken as explained by it)."""
+    explains the data with the track-shaped error; the data are not taken as explained by it);
+    `track_error_long_wave_share`: the share taken as long-wave drift (`_record_shape.py`; above
+    0 where the data hold far less misfit than a track-shaped error leaves)."""
 
     names: tuple[str, ...]
     status: str
@@ -113,6 +116,7 @@ class FitSummary:
     horizons: tuple[float, ...] = ()
     misfit_ratio: float = float("nan")
     track_error_white_share: float = 0.0
+    track_error_long_wave_share: float = 0.0
 
     @property
     def explains_data(self) -> bool:
@@ -214,6 +218,13 @@ class MonitorResult:
                 f"track records' error: {100 * self.fit.track_error_white_share:.0f} % of its "
                 "variance white over the recording band, in the standard errors (the misfit calls "
                 "for it; the data are not taken as explained by it)"
+            )
+        if self.fit.track_error_long_wave_share > 0:
+            rows.append(
+                f"track records' error: {100 * self.fit.track_error_long_wave_share:.4g} % of its "
+                f"variance long-wave drift ({LONG_BAND[0]:g}-{LONG_BAND[1]:g} m), in the standard "
+                "errors (the residuals hold far less misfit than an error shaped like the track "
+                "leaves)"
             )
         warning = misfit_warning(self.fit.misfit_ratio)
         if warning:

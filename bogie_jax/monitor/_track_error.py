@@ -64,7 +64,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..track import SPECTRA, TrackIrregularity
+from ..track import FADE_LENGTH, SPECTRA, TrackIrregularity, fade_envelope
 
 
 def scaled_error(error, rms: float, semi_distance: float) -> np.ndarray:
@@ -106,20 +106,32 @@ def record_error(values, rms: float, semi_distance: float, rng, reference=None) 
     )
 
 
-def band_error(values, ds: float, rms: float, semi_distance: float, rng, band) -> np.ndarray:
+BAND_BINS = 256  # Fourier bins inside a band error's band, at least (`band_error`)
+
+
+def band_error(
+    values, ds: float, rms: float, semi_distance: float, rng, band, fade: float = 0.0
+) -> np.ndarray:  # fmt: skip
     """One realisation `(n, 3)` of a record error white over the wavelength `band` (lo, hi) [m]
     on the record `values` `(n, 3)` sampled every `ds` [m]: independent complex normal Fourier
-    coefficients at the record's wavenumbers 1 / hi to 1 / lo [1/m], none elsewhere, scaled
-    (`scaled_error`); `rng`: a numpy `Generator`. A channel of the record without power gets
-    no error."""
+    coefficients at the wavenumbers 1 / hi to 1 / lo [1/m] of a periodic grid of N >= n
+    samples that holds at least `BAND_BINS` of them, none elsewhere, its first n samples taken
+    (so waves longer than the record enter as the record's share of them, not as the record's
+    periodic harmonics), faded in and out over `fade` [m] (`bogie_jax.track.fade_envelope`)
+    and scaled (`scaled_error`); `rng`: a numpy `Generator`. A channel of the record without
+    power gets no error."""
     v = np.asarray(values, dtype=float)
     n = v.shape[0]
-    wavenumbers = np.fft.rfftfreq(n, d=ds)
+    grid = max(n, int(np.ceil(BAND_BINS / (ds * (1.0 / band[0] - 1.0 / band[1])))))
+    wavenumbers = np.fft.rfftfreq(grid, d=ds)
     inside = (wavenumbers >= 1.0 / band[1]) & (wavenumbers <= 1.0 / band[0])
     shape = (wavenumbers.size, 3)
     coefficients = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) * inside[:, None]
     powered = np.any(v != v[:1], axis=0)
-    return scaled_error(np.fft.irfft(coefficients, n=n, axis=0) * powered, rms, semi_distance)
+    error = np.fft.irfft(coefficients, n=grid, axis=0)[:n]
+    if fade > 0.0 and 2.0 * fade <= ds * (n - 1):
+        error = error * fade_envelope(ds * np.arange(n), fade)[:, None]
+    return scaled_error(error * powered, rms, semi_distance)
 
 
 REFIT_STEPS = 2  # Gauss-Newton steps of each refit (module docstring)
@@ -131,7 +143,8 @@ class RecordError:
     """The records' error model: RMS `rms` [m] in alignment and vertical level, cross level over
     the contact distance 2 `semi_distance` [m] (module docstring); shaped like the track
     (`record_error`) where `band` is `None`, else white over that wavelength band (lo, hi) [m]
-    (`band_error`)."""
+    (`band_error`), faded in and out as the track of a synthetic `TrackReference` is (its
+    record starts from zero: an error that did not would be a step into the run)."""
 
     rms: float
     semi_distance: float
@@ -141,7 +154,11 @@ class RecordError:
         """One realisation `(n, 3)` for the record `track` (a `TrackIrregularity`)."""
         if self.band is None:
             return record_error(track.values, self.rms, self.semi_distance, rng, reference)
-        return band_error(track.values, track.ds, self.rms, self.semi_distance, rng, self.band)
+        synthetic = reference is not None and reference.file is None
+        fade = FADE_LENGTH if synthetic and reference.spectrum in SPECTRA else 0.0
+        return band_error(
+            track.values, track.ds, self.rms, self.semi_distance, rng, self.band, fade
+        )
 
 
 class TrackErrorEffect(NamedTuple):
@@ -156,6 +173,7 @@ class TrackErrorEffect(NamedTuple):
     misfits: np.ndarray  # (draws, m): each draw's (I - J J^+) dr, in the fit's weighted rows
     bias_variance: np.ndarray  # (n,): the Monte Carlo variance of `bias` (inf: one pair)
     white_share: float = 0.0  # of the error's variance white over a band (`_record_shape.py`)
+    long_wave_share: float = 0.0  # of it white over the long waves (`_record_shape.py`)
     mixed_misfits: np.ndarray | None = None  # (draws, m): the mixed error's, where `misfits`
     # are the track-shaped draws' (`_record_shape.py`); the misfit scale's tests use them
 

@@ -21,6 +21,8 @@ from ._reference import (
     spectrum_from_name as spectrum_from_name,
 )
 from ._synthesis import (
+    FADE_LENGTH as FADE_LENGTH,
     band_variance as band_variance,
+    fade_envelope as fade_envelope,
     synthesise_track as synthesise_track,
 )

@@ -22,6 +22,7 @@ _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _NUM_PANELS = 128
 # Frequency resolution of the synthesis: at least this many FFT bins inside the band.
 _MIN_BINS_IN_BAND = 4096
+FADE_LENGTH = 20.0  # [m]: the default fade-in and fade-out of a synthesised track
 
 
 def _panel_integrals(psd: AbstractTrackPSD, lo: Array, hi: Array) -> Float[Array, "k 3"]:
@@ -62,7 +63,7 @@ def synthesise_track(
     length: float,
     spacing: float = 0.25,
     wavelength_band: tuple[float, float] = (3.0, 70.0),
-    fade_length: float = 20.0,
+    fade_length: float = FADE_LENGTH,
     start: float = 0.0,
 ) -> TrackIrregularity:
     """A random track realisation with the one-sided spectrum `psd` inside a wavelength band.
@@ -107,7 +108,7 @@ def synthesise_track(
     # end, the Nyquist bin nothing, so the bins tile the band exactly.
     hi[-2] = omega_hi
     lo[-1] = hi[-1] = omega_hi
-    envelope = _fade_envelope(spacing * np.arange(num), fade_length)
+    envelope = fade_envelope(spacing * np.arange(num), fade_length)
     values = _random_field(psd, key, lo, hi, envelope, num_fft)
     return TrackIrregularity(s0=start, ds=spacing, values=values)
 
@@ -122,8 +123,10 @@ def _random_field(psd, key, lo, hi, envelope, num_fft: int) -> Float[Array, "n 3
     return raw * envelope[:, None]
 
 
-def _fade_envelope(s_local: np.ndarray, fade_length: float) -> np.ndarray:
-    """1 in the middle, quintic smoothstep over `fade_length` at both ends (0 at the ends)."""
+def fade_envelope(s_local: np.ndarray, fade_length: float) -> np.ndarray:
+    """The envelope of a synthesised track at the distances `s_local` [m] from its start (the
+    last its end): 1 in the middle, a quintic smoothstep over `fade_length` [m] at both ends (0
+    at the ends)."""
     if fade_length == 0.0:
         return np.ones(s_local.shape)
     rise = _smoothstep5(s_local / fade_length)
