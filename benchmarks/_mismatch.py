@@ -22,7 +22,10 @@ not, so a case is the same whatever the shard, worker, order or mode):
   (35 m, half the band's shortest wavelength, so the fade adds little at recording-band
   wavelengths), RMS uniform in `DRIFT_RMS` (0.3-1 mm: up to about 40 % of the ERRI-low
   spectrum's own RMS over that band, 1.9 mm in alignment and 2.6 mm in level by
-  `band_variance`). In both track modes the monitor is told only the error's RMS
+  `band_variance`). `detection.py --drift-band LO,HI` draws the drift over another band: the
+  monitor's own long-wave term assumes D3 (`bogie_jax.monitor.LONG_BAND`), so a band unlike
+  it tests that term on a drift it does not assume. In both track modes the monitor is told
+  only the error's RMS
   (`MonitorOptions(track_error=...)`; with `--track-error` or both modes, the root sum of
   squares of the RMS values), and the record has no other error or offset unless `track` is on;
 - `unjudged-defect` (j): a defect in an element outside the candidate list: the element drawn
@@ -103,15 +106,16 @@ def check_modes(imperfections) -> None:
         raise SystemExit(f"--imperfection: {' and '.join(wheels)} both set the true wheels")
 
 
-def config(imperfections) -> dict:
+def config(imperfections, drift_band=None) -> dict:
     """The mismatch modes' settings for `detection.config_of` (empty without a mode on, so the
-    configurations of the other modes keep their hash)."""
+    configurations of the other modes keep their hash); `drift_band` [m] replaces
+    `DRIFT_BAND`."""
     if not set(imperfections) & set(MODES):
         return {}
     return {
         "mismatch": {
             "record_band_m": list(RECORD_BAND), "white_rms_m": list(WHITE_RMS),
-            "drift_band_m": list(DRIFT_BAND), "drift_rms_m": list(DRIFT_RMS),
+            "drift_band_m": list(drift_band or DRIFT_BAND), "drift_rms_m": list(DRIFT_RMS),
             "drift_fade_m": DRIFT_FADE, "damper_factor": list(DAMPER_FACTOR),
             "spring_factor": list(SPRING_FACTOR), "with_candidate": WITH_CANDIDATE,
             "unjudged_elements": list(unjudged_elements()),
@@ -194,14 +198,15 @@ def band_error(ref, band, rms: float, semi_distance: float, seed: int, fade: flo
     return error * (target / np.sqrt(np.mean(error**2, axis=0)))
 
 
-def record_errors(on, refs, case: dict, semi_distance: float):
+def record_errors(on, refs, case: dict, semi_distance: float, drift_band=DRIFT_BAND):
     """(the extra error `(n, 3)` of each run's record or `None`, the RMS [m] the monitor is told
-    of it, its record entries) for the track modes that are on."""
+    of it, its record entries) for the track modes that are on, the drift over `drift_band`
+    [m]."""
     parts = []
     if "track-white" in on:
         parts.append(("white", RECORD_BAND, TRACK_FADE))
     if "track-drift" in on:
-        parts.append(("drift", DRIFT_BAND, DRIFT_FADE))
+        parts.append(("drift", tuple(drift_band), DRIFT_FADE))
     if not parts:
         return None, 0.0, {}
     errors = [0.0] * len(refs)

@@ -202,7 +202,7 @@ def config_of(args) -> dict:
         **({"nuisance": list(args.nuisance)} if args.nuisance is not None else {}),
         **({"fit_model": args.fit_model} if args.fit_model != "linear" else {}),
         **({"fit_contact": args.fit_contact} if args.fit_contact is not None else {}),
-        **_mismatch.config(args.imperfections),
+        **_mismatch.config(args.imperfections, args.drift_band),
     }
 
 
@@ -261,7 +261,8 @@ def case_inputs(cfg: dict, index: int) -> dict:
         speed_errors=case["speed_errors"] if "speed" in on else None,
     )  # fmt: skip
     semi = value(nominal, "contact.contact_semi_distance")
-    errors, told, entries = _mismatch.record_errors(on, refs, case, semi)
+    band = cfg.get("mismatch", {}).get("drift_band_m", _mismatch.DRIFT_BAND)
+    errors, told, entries = _mismatch.record_errors(on, refs, case, semi, band)
     track_on = "track" in on
     tracks = record_tracks(
         refs, noise=cfg["track_noise_mm"] * 1e-3 if track_on else 0.0,
@@ -792,6 +793,10 @@ def parse_args(argv=None) -> argparse.Namespace:
         help="the contact of the monitor's model (default: the mode's, the cone unless "
         "worn-profile: s1002-uic60)",
     )  # fmt: skip
+    p.add_argument(
+        "--drift-band", type=_band, default=None, metavar="LO,HI",
+        help="[m] the track-drift mode's wavelength band (default 70,200: EN 13848 D3)",
+    )  # fmt: skip
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")
     p.add_argument("--report", action="store_true", help="only aggregate the records")
@@ -825,6 +830,17 @@ def parse_args(argv=None) -> argparse.Namespace:
         if not ok:
             raise SystemExit(f"{name} = {given!r} is out of range")
     return args
+
+
+def _band(text: str) -> tuple[float, float]:
+    """`LO,HI` [m] with 0 < LO < HI."""
+    try:
+        lo, hi = (float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI in m, got {text!r}") from None
+    if not 0 < lo < hi:
+        raise argparse.ArgumentTypeError(f"expected 0 < LO < HI, got {text!r}")
+    return lo, hi
 
 
 def main(argv=None):
