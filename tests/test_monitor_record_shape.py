@@ -54,21 +54,28 @@ def _curvature_share(band):
     return value / (k_hi - k_lo)
 
 
-@pytest.mark.parametrize("band, n", [(RECORD_BAND, 1200), (LONG_BAND, 4800), (LONG_BAND, 480)])
-def test_a_band_error_is_white_over_the_band_with_the_stated_level(band, n):
+@pytest.mark.parametrize(
+    "band, n, stationary",
+    [(RECORD_BAND, 1200, False), (RECORD_BAND, 1200, True), (LONG_BAND, 4800, True),
+     (LONG_BAND, 480, True)],
+)  # fmt: skip
+def test_a_band_error_is_white_over_the_band_with_the_stated_level(band, n, stationary):
     """Oracles: the autocorrelation of a process white over the band (`_band_correlation`) and
     its second differences' variance (`_curvature_share`, scipy quadrature), over 400 draws on
     records of 300 m and 1200 m, and on a record of 120 m, shorter than the long band's waves
-    (only the curvature: a draw scaled to its record's RMS has a biased correlation there).
-    Each draw has the stated RMS per channel exactly, and a channel without power in the
-    record gets none."""
+    (only the curvature: a draw scaled to its record's RMS has a biased correlation there; on
+    the record's own grid that record holds one wave of the band, periodic). Each draw has the
+    stated RMS per channel exactly, and a channel without power in the record gets none."""
     rng = np.random.default_rng(0)
     rms = 2e-4
     values = _record(rng, n)
     values[:, 2] = 0.0
     track = TrackIrregularity(0.0, DS, values)
-    error = RecordError(rms, SEMI, band)
+    error = RecordError(rms, SEMI, band, stationary)
     draws = np.array([error.draw(track, rng) for _ in range(400)])[:, :, :2]
+    if n * DS < band[1]:  # the record's own grid: one wave of the band, its own length
+        own = np.abs(np.fft.rfft(RecordError(rms, SEMI, band).draw(track, rng)[:, :2], axis=0))
+        assert np.all(np.sum(own > 1e-9 * own.max(axis=0), axis=0) == 1) and own[1].min() > 0
     np.testing.assert_allclose(np.sqrt(np.mean(draws**2, axis=1)), rms, rtol=1e-12)
     curvature = np.mean(np.diff(draws, 2, axis=1) ** 2) / np.mean(draws[:, 1:-1] ** 2)
     assert curvature == pytest.approx(_curvature_share(band), rel=0.1)
@@ -81,13 +88,16 @@ def test_a_band_error_is_white_over_the_band_with_the_stated_level(band, n):
 
 
 def test_a_band_error_fades_in_and_out_as_a_synthetic_record_does():
-    """A synthetic record starts and ends at zero (its fades): so does a band error drawn for
-    it (oracle: `bogie_jax.track.fade_envelope`'s zeros and ones), at the stated RMS; over the
-    record's middle it is the unfaded error's shape."""
+    """A synthetic record starts and ends at zero (its fades): so does a stationary band error
+    drawn for it (oracle: `bogie_jax.track.fade_envelope`'s zeros and ones), at the stated RMS;
+    over the record's middle it is the unfaded error's shape. On the record's own grid it is
+    not faded."""
     reference = TrackReference(spectrum="erri-low", seed=3, length=150.0)
     track = reference.build()
+    own_grid = RecordError(3e-4, SEMI, RECORD_BAND).draw(track, np.random.default_rng(1), reference)
+    assert np.all(own_grid[0, :2] != 0.0)
     for band in (RECORD_BAND, LONG_BAND):
-        error = RecordError(3e-4, SEMI, band)
+        error = RecordError(3e-4, SEMI, band, stationary=True)
         faded = error.draw(track, np.random.default_rng(1), reference)
         plain = error.draw(track, np.random.default_rng(1))
         np.testing.assert_array_equal(faded[[0, -1]], 0.0)

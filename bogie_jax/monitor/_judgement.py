@@ -35,10 +35,12 @@ from ._verdict import Verdict, decision_z, judge
 SIMEX_MAX_SPREAD = 0.1  # [-], ln p: the records' bias is removed where it and their spread are less
 
 
-def track_record_term(space: FitSpace, fit: HostFit, say, band=None) -> TrackErrorEffect | None:
+def track_record_term(
+    space: FitSpace, fit: HostFit, say, band=None, stationary: bool = False
+) -> TrackErrorEffect | None:  # fmt: skip
     """The track records' error in the fitted coordinates at the estimate (`_track_error.py`),
-    shaped like the track or, with a wavelength `band` [m], white over it (`RecordError`); `None`
-    without a `track_error` or a fit."""
+    shaped like the track or, with a wavelength `band` [m], white over it (`RecordError`, with
+    `stationary`); `None` without a `track_error` or a fit."""
     p = space.program.problem
     o = p.options
     if not o.track_error > 0 or fit.status == "failed":
@@ -47,7 +49,7 @@ def track_record_term(space: FitSpace, fit: HostFit, say, band=None) -> TrackErr
     semi_distance = float(np.asarray(p.params.contact.contact_semi_distance))
     loose = space.with_program(space.program.with_loose_jacobian())  # `_program.py`
     return track_error_effect(
-        loose, p.tracks, fit.phi, RecordError(o.track_error, semi_distance, band),
+        loose, p.tracks, fit.phi, RecordError(o.track_error, semi_distance, band, stationary),
         Sampling(o.track_error_draws), references=[m.track for m in p.measurements],
         start=(fit.r, fit.jac),
     )  # fmt: skip

@@ -106,23 +106,24 @@ def record_error(values, rms: float, semi_distance: float, rng, reference=None) 
     )
 
 
-BAND_BINS = 256  # Fourier bins inside a band error's band, at least (`band_error`)
+BAND_BINS = 256  # Fourier bins inside a stationary band error's band, at least (`RecordError`)
 
 
 def band_error(
-    values, ds: float, rms: float, semi_distance: float, rng, band, fade: float = 0.0
+    values, ds: float, rms: float, semi_distance: float, rng, band, fade: float = 0.0,
+    bins: int = 0,
 ) -> np.ndarray:  # fmt: skip
     """One realisation `(n, 3)` of a record error white over the wavelength `band` (lo, hi) [m]
     on the record `values` `(n, 3)` sampled every `ds` [m]: independent complex normal Fourier
     coefficients at the wavenumbers 1 / hi to 1 / lo [1/m] of a periodic grid of N >= n
-    samples that holds at least `BAND_BINS` of them, none elsewhere, its first n samples taken
-    (so waves longer than the record enter as the record's share of them, not as the record's
-    periodic harmonics), faded in and out over `fade` [m] (`bogie_jax.track.fade_envelope`)
-    and scaled (`scaled_error`); `rng`: a numpy `Generator`. A channel of the record without
-    power gets no error."""
+    samples that holds at least `bins` of them (0: the record's own grid), none elsewhere, its
+    first n samples taken (with `bins`, waves longer than the record enter as the record's
+    share of them, not as its periodic harmonics), faded in and out over `fade` [m]
+    (`bogie_jax.track.fade_envelope`) and scaled (`scaled_error`); `rng`: a numpy `Generator`.
+    A channel of the record without power gets no error."""
     v = np.asarray(values, dtype=float)
     n = v.shape[0]
-    grid = max(n, int(np.ceil(BAND_BINS / (ds * (1.0 / band[0] - 1.0 / band[1])))))
+    grid = max(n, int(np.ceil(bins / (ds * (1.0 / band[0] - 1.0 / band[1])))))
     wavenumbers = np.fft.rfftfreq(grid, d=ds)
     inside = (wavenumbers >= 1.0 / band[1]) & (wavenumbers <= 1.0 / band[0])
     shape = (wavenumbers.size, 3)
@@ -143,21 +144,26 @@ class RecordError:
     """The records' error model: RMS `rms` [m] in alignment and vertical level, cross level over
     the contact distance 2 `semi_distance` [m] (module docstring); shaped like the track
     (`record_error`) where `band` is `None`, else white over that wavelength band (lo, hi) [m]
-    (`band_error`), faded in and out as the track of a synthetic `TrackReference` is (its
-    record starts from zero: an error that did not would be a step into the run)."""
+    (`band_error`): on the record's own Fourier grid, or with `stationary` on a grid of at
+    least `BAND_BINS` bins in the band (waves longer than the record) and faded in and out as
+    the track of a synthetic `TrackReference` is (that record starts from zero: an error that
+    did not would be a step into the run). `_record_shape.py` says which term uses which."""
 
     rms: float
     semi_distance: float
     band: tuple[float, float] | None = None
+    stationary: bool = False
 
     def draw(self, track, rng, reference=None) -> np.ndarray:
         """One realisation `(n, 3)` for the record `track` (a `TrackIrregularity`)."""
         if self.band is None:
             return record_error(track.values, self.rms, self.semi_distance, rng, reference)
+        if not self.stationary:
+            return band_error(track.values, track.ds, self.rms, self.semi_distance, rng, self.band)
         synthetic = reference is not None and reference.file is None
         fade = FADE_LENGTH if synthetic and reference.spectrum in SPECTRA else 0.0
         return band_error(
-            track.values, track.ds, self.rms, self.semi_distance, rng, self.band, fade
+            track.values, track.ds, self.rms, self.semi_distance, rng, self.band, fade, BAND_BINS
         )
 
 
