@@ -19,10 +19,10 @@ from bogie_jax.monitor import (
     RecordError,
     Sampling,
     TrackErrorEffect,
+    least_surprising_share,
     mixed_effect,
     mixed_record_term,
     track_error_effect,
-    white_share,
 )
 from bogie_jax.track import FADE_LENGTH, TrackIrregularity, TrackReference, fade_envelope
 
@@ -200,7 +200,7 @@ def test_the_white_share_is_the_least_surprising_of_the_grid(centres, widths):
 
     shares = np.linspace(0.0, 1.0, 21)
     combined = [scipy.stats.combine_pvalues(p_at(w), method="fisher")[0] for w in shares]
-    got = white_share(lambda w: _goodness(p_at(w)))
+    got = least_surprising_share(lambda w: _goodness(p_at(w)))
     assert got == pytest.approx(shares[int(np.argmin(combined))], abs=1e-12)
     assert 0.0 <= got <= 1.0
 
@@ -229,7 +229,7 @@ def test_the_long_wave_share_is_the_least_surprising_in_both_tails(observed):
         return np.maximum(np.minimum(2 * np.minimum(p, q), 1.0), 1e-300)
 
     combined = [scipy.stats.combine_pvalues(two_sided(w), method="fisher")[0] for w in LONG_SHARES]
-    got = white_share(lambda w: _goodness(*tails(w)), LONG_SHARES, two_sided=True)
+    got = least_surprising_share(lambda w: _goodness(*tails(w)), LONG_SHARES, two_sided=True)
     assert got == pytest.approx(LONG_SHARES[int(np.argmin(combined))], abs=1e-12)
     assert LONG_SHARES[0] == 0.0 and LONG_SHARES[-1] == 1.0
     assert np.all(np.diff(LONG_SHARES) > 0) and 1.0 - LONG_SHARES[-2] == pytest.approx(1e-4)
@@ -264,7 +264,7 @@ def test_a_long_wave_mixture_records_its_share_in_its_own_field():
 
 def test_the_white_share_breaks_ties_towards_the_track_shape():
     """Every share equally surprising (every p-value at the floor): no white share."""
-    assert white_share(lambda w: _goodness([0.0, 0.0])) == 0.0
+    assert least_surprising_share(lambda w: _goodness([0.0, 0.0])) == 0.0
 
 
 @pytest.mark.parametrize("white, long", [(0.0, 0.0), (0.85, 0.0), (0.0, 0.9999)])

@@ -98,10 +98,10 @@ from ._record_shape import (
     LONG_BAND as LONG_BAND,
     LONG_SHARES as LONG_SHARES,
     RECORD_BAND as RECORD_BAND,
+    least_surprising_share as least_surprising_share,
     long_wave_term as long_wave_term,
     mixed_effect as mixed_effect,
     mixed_record_term as mixed_record_term,
-    white_share as white_share,
 )
 from ._result import (
     MISFIT_LIMIT as MISFIT_LIMIT,

@@ -88,7 +88,7 @@ LONG_SHARES = 1.0 - np.concatenate([[1.0], np.logspace(-0.25, -4.0, 16), [0.0]])
 P_FLOOR = 1e-300  # a p-value below this counts as this in the combined statistic
 
 
-def white_share(goodness_at, shares=SHARES, two_sided: bool = False) -> float:
+def least_surprising_share(goodness_at, shares=SHARES, two_sided: bool = False) -> float:
     """The share w among `shares` (module docstring) under which the run-group tests are least
     surprised together: the smallest of Fisher's combined statistic -2 sum_g ln p_g (Fisher,
     *Statistical Methods for Research Workers*, 1925, sec. 21.1) of their p-values (upper tail;
@@ -152,7 +152,9 @@ def record_term(space, fit, say) -> TrackErrorEffect | None:
         return long_wave_term(space, fit, track, say) if goodness.overstated else track
     say("the data are not explained with a track-shaped record error: trying a white one")
     white = track_record_term(space, fit, say, band=RECORD_BAND)
-    w = white_share(lambda share: fit_goodness(space, fit, mixed_effect(track, white, share)))
+    w = least_surprising_share(
+        lambda share: fit_goodness(space, fit, mixed_effect(track, white, share))
+    )
     say(f"record error: {100 * w:.0f} % of its variance white over the recording band")
     mixed = mixed_effect(track, white, w)
     return mixed._replace(
@@ -165,7 +167,7 @@ def long_wave_term(space, fit, track: TrackErrorEffect, say) -> TrackErrorEffect
     the least surprising in both tails among `LONG_SHARES` (module docstring)."""
     say("the data hold far less misfit than a track-shaped record error leaves: trying drift")
     long = track_record_term(space, fit, say, band=LONG_BAND, stationary=True)
-    w = white_share(
+    w = least_surprising_share(
         lambda share: fit_goodness(space, fit, mixed_effect(track, long, share, "long_wave_share")),
         LONG_SHARES,
         two_sided=True,
