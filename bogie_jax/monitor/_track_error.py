@@ -83,6 +83,11 @@ def synthesis_error(reference, seed: int, rms: float, semi_distance: float) -> n
     return scaled_error(other.values, rms, semi_distance)
 
 
+def _synthetic(reference) -> bool:
+    """Whether `reference` names a synthetic track (a `TrackReference` with a spectrum)."""
+    return reference is not None and reference.file is None and reference.spectrum in SPECTRA
+
+
 def record_error(values, rms: float, semi_distance: float, rng, reference=None) -> np.ndarray:
     """One realisation `(n, 3)` of a record's error (module docstring) for the record
     `values` `(n, 3)` (alignment [m], vertical [m], cross level [rad]); `rng`: a numpy
@@ -91,7 +96,7 @@ def record_error(values, rms: float, semi_distance: float, rng, reference=None) 
     otherwise the record with random Fourier phases. A channel without power gets no error."""
     v = np.asarray(values, dtype=float)
     n = v.shape[0]
-    if reference is not None and reference.file is None and reference.spectrum in SPECTRA:
+    if _synthetic(reference):
         seed = int(rng.integers(0, 2**31 - 1))
         error = synthesis_error(reference, seed, rms, semi_distance)
         if error.shape == v.shape:
@@ -160,8 +165,7 @@ class RecordError:
             return record_error(track.values, self.rms, self.semi_distance, rng, reference)
         if not self.stationary:
             return band_error(track.values, track.ds, self.rms, self.semi_distance, rng, self.band)
-        synthetic = reference is not None and reference.file is None
-        fade = FADE_LENGTH if synthetic and reference.spectrum in SPECTRA else 0.0
+        fade = FADE_LENGTH if _synthetic(reference) else 0.0
         return band_error(
             track.values, track.ds, self.rms, self.semi_distance, rng, self.band, fade, BAND_BINS
         )
