@@ -19,8 +19,12 @@ def forward_mode(objective):
     return switch() if callable(switch) else objective
 
 
-def residual_jacobian(objective, theta, args=None):
-    """`(r, J)`: residuals `r` (m,) and their Jacobian `J = dr/dtheta` (m, n) at `theta` (n,).
+def residual_jacobian(objective, theta, args=None, directions=None):
+    """`(r, J)`: residuals `r` (m,) and their Jacobian `J = dr/dtheta` (m, n) at `theta` (n,);
+    with `directions` (n, k), `J @ directions` (m, k) instead: k tangents carried, so that the
+    columns of one Jacobian can be taken in blocks by one compiled program each on its own core
+    (the step sizes follow the primal solve alone, so a block's columns equal the whole
+    Jacobian's).
 
     `objective`: anything with `residuals(theta, args)` (an `Objective` or a
     `CorrectedObjective` over [theta, run corrections], switched to forward mode; a
@@ -30,6 +34,8 @@ def residual_jacobian(objective, theta, args=None):
     objective = forward_mode(objective)
     fn = lambda th: jnp.ravel(objective.residuals(th, args))
     theta = jnp.asarray(theta)
-    basis = jnp.eye(theta.size, dtype=theta.dtype)
-    r, jac_t = jax.vmap(lambda v: jax.jvp(fn, (theta,), (v,)), out_axes=(None, 0))(basis)
+    if directions is None:
+        directions = jnp.eye(theta.size, dtype=theta.dtype)
+    tangents = jnp.asarray(directions, dtype=theta.dtype).T
+    r, jac_t = jax.vmap(lambda v: jax.jvp(fn, (theta,), (v,)), out_axes=(None, 0))(tangents)
     return r, jac_t.T
