@@ -11,6 +11,8 @@ tests/test_fleet_page.py.
 
 import os
 import pathlib
+import subprocess
+import sys
 import time
 
 import dask
@@ -22,6 +24,7 @@ from bogie_jax.fleet import (
     DaskEngine,
     SerialEngine,
     SyntheticBogie,
+    can_pin,
     open_store,
     read_inventory,
     run_fleet,
@@ -52,7 +55,12 @@ def stand_in(task):
            "ci95": [0.98, 1.02], "tolerance_band": band, "unit": "", "evidence": {}}  # fmt: skip
     return {"format": "bogie_jax.verdicts/1", "date": task.date, "source": "stand-in",
             "verdicts": [row], "fit": {"status": "converged", "explains_data": True},
-            "runs": [{"index": 0, "used": True}], "pid": os.getpid()}  # fmt: skip
+            "runs": [{"index": 0, "used": True}], "pid": os.getpid(),
+            "cores": _cores()}  # fmt: skip
+
+
+def _cores() -> list[int]:
+    return sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
 
 
 def _inventory(tmp_path, bogies, dates=("2026-11-01",)):
@@ -140,7 +148,32 @@ def test_a_local_dask_cluster_of_two_workers_judges_and_survives_a_dead_worker(
     pids = {j["record"]["pid"] for j in store.judgements()}
     # both workers (a worker restarted after the crash has a new pid), neither of them this one
     assert len(pids) >= 2 and os.getpid() not in pids
+    if can_pin():  # each worker on one core of this process's (`_pinning.py`)
+        cores = [j["record"]["cores"] for j in store.judgements()]
+        assert all(len(c) == 1 and c[0] in _cores() for c in cores), cores
     assert "bogie-dates 5/5 done" in lines[-1]
+
+
+@pytest.mark.skipif(not can_pin(), reason="pinning needs Linux's sched_setaffinity")
+def test_a_pinned_process_and_every_thread_it_starts_run_on_one_core():
+    """`pin_process` (what each local Dask worker runs as it starts) in a fresh process
+    (pinning this one would slow the suite): a thread started before it and one after both
+    report the one core."""
+    code = (
+        "import os, threading\n"
+        "from bogie_jax.fleet import pin_process\n"
+        "seen, go = [], threading.Event()\n"
+        "affinity = lambda: seen.append(sorted(os.sched_getaffinity(0)))\n"
+        "before = threading.Thread(target=lambda: (go.wait(), affinity()))\n"
+        "before.start()\n"
+        f"pin_process({_cores()[-1]})\n"
+        "go.set(); before.join()\n"
+        "after = threading.Thread(target=affinity)\n"
+        "after.start(); after.join(); affinity()\n"
+        "print(seen)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == str([[_cores()[-1]]] * 3)
 
 
 def test_an_unreachable_scheduler_is_one_line_before_anything(tmp_path, capsys):

@@ -278,6 +278,18 @@ def test_jacobian_columns_match_central_differences(corrected):
         assert np.all(jac[first, j] == 0) and np.any(jac[second, j] != 0)
 
 
+def test_jacobian_along_directions_is_the_jacobian_times_them(corrected):
+    """`residual_jacobian(..., directions=D)` (the monitor's blocks of columns) is J D: the
+    same primal solve, k tangents instead of n."""
+    x = jnp.asarray([0.05, -0.25, 0.15, np.log(1.008), np.log(0.992)])
+    r, jac = (np.asarray(a) for a in _jacobian(corrected, x))
+    d = np.random.default_rng(3).normal(size=(x.size, 2))
+    r_d, jac_d = (np.asarray(a) for a in _jacobian(corrected, x, None, jnp.asarray(d)))
+    assert jac_d.shape == (r.size, 2)
+    np.testing.assert_array_equal(r_d, r)  # one primal solve, whatever the tangents
+    np.testing.assert_allclose(jac_d, jac @ d, rtol=0, atol=1e-10 * np.max(np.abs(jac @ d)))
+
+
 # ------------------------------------------------------------------------------------------
 # fitting the corrections removes the bias
 # ------------------------------------------------------------------------------------------

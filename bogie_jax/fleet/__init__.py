@@ -25,6 +25,7 @@ from ._migrations import (
     latest_version as latest_version,
 )
 from ._page import fleet_page as fleet_page, write_fleet_page as write_fleet_page
+from ._pinning import can_pin as can_pin, pin_process as pin_process
 from ._run import (
     FleetSummary as FleetSummary,
     pending_tasks as pending_tasks,

@@ -1,6 +1,7 @@
 """Where the tasks run: `SerialEngine` (this process, one task after another: the baseline and
 the small case) or `DaskEngine` (a Dask cluster: a local one of one single-threaded worker
-process per core by default, or an existing one by its scheduler address).
+process per core by default, each pinned to a core of its own (`_pinning.py`), or an existing
+one by its scheduler address).
 
 Why Dask (`distributed`) and not Ray: its workers are plain long-lived Python processes that
 keep whatever a task compiled (our JAX programs) for the next task, which is what a fleet of
@@ -15,6 +16,7 @@ import logging
 import os
 from collections.abc import Callable, Iterable, Iterator
 
+from . import _pinning
 from ._task import JudgeTask, Outcome
 from ._worker import error_line
 
@@ -84,13 +86,22 @@ class DaskEngine:
             else:
                 self._cluster = LocalCluster(
                     n_workers=self._n_workers(), threads_per_worker=1, processes=True,
-                    dashboard_address=None, silence_logs=logging.ERROR, env=WORKER_ENVIRONMENT,
+                    dashboard_address=None, silence_logs=logging.ERROR, env=self._environment(),
+                    preload=[_pinning.__name__] if _pinning.can_pin() else [],
                 )  # fmt: skip
                 self._client = Client(self._cluster)
         except OSError as e:  # no scheduler at the address, a timeout
             self.__exit__(None, None, None)
             raise EngineError(f"cannot reach the dask scheduler {self.address}: {e}") from None
         return self
+
+    @staticmethod
+    def _environment() -> dict:
+        """`WORKER_ENVIRONMENT` and the cores the workers are pinned to (`_pinning.py`)."""
+        if not _pinning.can_pin():
+            return WORKER_ENVIRONMENT
+        cores = ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
+        return {**WORKER_ENVIRONMENT, _pinning.WORKER_CORES: cores}
 
     def __exit__(self, *exc):
         for thing in (self._client, self._cluster):

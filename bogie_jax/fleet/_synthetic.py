@@ -38,13 +38,17 @@ def _toml_list(items) -> str:
     return "[" + ", ".join(f'"{x}"' for x in items) + "]"
 
 
-def write_synthetic_fleet(folder, bogies, *, runs=SHORT_RUNS, candidates=(), seed: int = 0,
-                          false_alarm_rate: float = 0.05) -> Path:  # fmt: skip
+def write_synthetic_fleet(
+    folder, bogies, *, runs=SHORT_RUNS, candidates=(), seed: int = 0,
+    false_alarm_rate: float = 0.05, track_error_mm: float = 0.0,
+) -> Path:  # fmt: skip
     """Simulate every bogie's runs on every date into `folder/data/ID/DATE/runK.npz` (the noise
-    key differs per bogie and date) and write `folder/inventory.toml`; returns its path."""
+    key differs per bogie and date) and write `folder/inventory.toml` (its `[monitor]` settings:
+    `candidates`, `false_alarm_rate`, `track_error_mm`); returns its path."""
     folder = Path(folder)
     lines = [f'format = "{INVENTORY_FORMAT}"', "", "[monitor]",
-             f"false_alarm_rate = {false_alarm_rate!r}"]  # fmt: skip
+             f"false_alarm_rate = {false_alarm_rate!r}",
+             f"track_error_mm = {float(track_error_mm)!r}"]  # fmt: skip
     if candidates:
         lines.append(f"candidates = {_toml_list(candidates)}")
     key = jr.PRNGKey(seed)

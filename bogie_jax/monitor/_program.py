@@ -3,7 +3,8 @@
 `JointProgram` holds the runs' joint objective (`bogie_jax.cost.make_joint_objective`, forward
 mode, with each run's corrections where fitted) and evaluates its residuals r and their Jacobian
 with respect to x = [ln p of the candidates and nuisance parameters, run corrections]
-(`bogie_jax.cost.residual_jacobian`): one compiled program for the Fisher information, every
+(`bogie_jax.cost.residual_jacobian`, its columns in blocks of one shape, one per core, each on
+a thread of its own: `column_blocks`): one compiled program for the Fisher information, every
 fit and horizon stage, the profile tests and the track record's refits, whatever records, runs
 or horizon are used; and a program of the residuals alone (`residuals`: the tight solves of a
 looser Jacobian, below, and the records' draws of `_track_error.py`, on other records). Both go
@@ -16,8 +17,8 @@ accepted on the residuals' cost, J may come from solves at a looser tolerance th
 (`with_loose_jacobian`): the first Jacobian, at the nominal bogie (the identifiability rule),
 the horizon stages, whose estimate the whole-record fit refines, and the track records' term
 (its first-order derivatives and its refits' Gauss-Newton steps). r is then solved at the
-settings' tolerance by a program of its own and J at `jacobian_rtol`, the two at once on two
-threads. The whole-record fit and the profile tests keep one tight solve for both: with J at
+settings' tolerance by a program of its own and J at `jacobian_rtol`, all at once on threads
+of their own. The whole-record fit and the profile tests keep one tight solve for both: with J at
 rtol 1e-4 a final fit stalled with its steps rejected, 4.6 cost units above the optimum (J's
 speed-factor columns differ by about 1 %, the others by 2e-4).
 
