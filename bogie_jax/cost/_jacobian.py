@@ -21,10 +21,10 @@ def forward_mode(objective):
 
 def residual_jacobian(objective, theta, args=None, directions=None):
     """`(r, J)`: residuals `r` (m,) and their Jacobian `J = dr/dtheta` (m, n) at `theta` (n,);
-    with `directions` (n, k), `J @ directions` (m, k) instead: k tangents carried, so that the
-    columns of one Jacobian can be taken in blocks by one compiled program each on its own core
-    (the step sizes follow the primal solve alone, so a block's columns equal the whole
-    Jacobian's).
+    with `directions` (n, k), `J @ directions` (m, k) instead: k tangents carried, so that one
+    compiled program takes a Jacobian's columns block by block, each block on a core of its own
+    (the step sizes follow the primal solve alone, so the blocks' columns are the whole
+    Jacobian's, up to rounding).
 
     `objective`: anything with `residuals(theta, args)` (an `Objective` or a
     `CorrectedObjective` over [theta, run corrections], switched to forward mode; a
