@@ -146,7 +146,7 @@ def write_result(args, records) -> None:
         f"# Fleet throughput: one process against a local Dask cluster\n\n"
         f"{args.bogies} synthetic bogies (two {args.duration:g} s runs, {n_candidates} "
         f"candidates, track-record error {args.track_error:g} mm told); the local cluster's "
-        f"workers are single-threaded processes, each pinned to a core of its own; cold: "
+        f"workers each run one task at a time, pinned to their share of the cores; cold: "
         f"`--no-cache` (each process compiles once); warm: a compilation cache filled by "
         f"{filled}. Times from the process's start.\n\n" + "\n".join(rows) + "\n"
     )

@@ -62,7 +62,10 @@ def _run_parser(fleet):
         "(default: start a local cluster)",
     )
     p.add_argument(
-        "--workers", type=int, default=None, help="local cluster: worker processes (default: cores)"
+        "--workers",
+        type=int,
+        default=None,
+        help="local cluster: worker processes (default: one per two cores)",
     )
 
 

@@ -1,7 +1,7 @@
 """Where the tasks run: `SerialEngine` (this process, one task after another: the baseline and
-the small case) or `DaskEngine` (a Dask cluster: a local one of one single-threaded worker
-process per core by default, each pinned to a core of its own (`_pinning.py`), or an existing
-one by its scheduler address).
+the small case) or `DaskEngine` (a Dask cluster: a local one of one worker process (one task
+at a time) per two cores by default, each pinned to its cores (`_pinning.py`), or an existing one
+by its scheduler address).
 
 Why Dask (`distributed`) and not Ray: its workers are plain long-lived Python processes that
 keep whatever a task compiled (our JAX programs) for the next task, which is what a fleet of
@@ -19,6 +19,13 @@ from collections.abc import Callable, Iterable, Iterator
 from . import _pinning
 from ._task import JudgeTask, Outcome
 from ._worker import error_line
+
+
+CORES_PER_WORKER = 2
+"""A local cluster's default: one worker per this many cores. `monitor` keeps two cores busy
+itself (a Jacobian's columns in two blocks, the track records' refits two at a time): on a
+2-core CPU, two workers of one core each judged 0.65 times as many bogies a minute as one
+process (`benchmarks/results/fleet_throughput/serial_vs_dask_two_8s_runs.md`)."""
 
 
 class EngineError(ValueError):
@@ -53,7 +60,8 @@ class SerialEngine:
 
 class DaskEngine:
     """A Dask cluster: `address` (`tcp://HOST:8786`) of a running scheduler, or `None` for a
-    local cluster of `workers` single-threaded worker processes (default: every core)."""
+    local cluster of `workers` worker processes, one task at a time each (default: one per
+    `CORES_PER_WORKER` cores), each pinned to its share of the cores (`_pinning.py`)."""
 
     def __init__(self, address: str | None = None, workers: int | None = None):
         if workers is not None and workers < 1:
@@ -70,7 +78,8 @@ class DaskEngine:
     def _n_workers(self) -> int:
         if self.workers:
             return self.workers
-        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+        cores = len(_pinning.cores()) if _pinning.can_pin() else os.cpu_count() or 1
+        return max(1, cores // CORES_PER_WORKER)
 
     def __enter__(self):
         try:
@@ -95,13 +104,12 @@ class DaskEngine:
             raise EngineError(f"cannot reach the dask scheduler {self.address}: {e}") from None
         return self
 
-    @staticmethod
-    def _environment() -> dict:
-        """`WORKER_ENVIRONMENT` and the cores the workers are pinned to (`_pinning.py`)."""
+    def _environment(self) -> dict:
+        """`WORKER_ENVIRONMENT` and the cores each worker is pinned to (`_pinning.py`)."""
         if not _pinning.can_pin():
             return WORKER_ENVIRONMENT
-        cores = ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
-        return {**WORKER_ENVIRONMENT, _pinning.WORKER_CORES: cores}
+        groups = _pinning.core_groups(_pinning.cores(), self._n_workers())
+        return {**WORKER_ENVIRONMENT, _pinning.WORKER_CORES: _pinning.encode(groups)}
 
     def __exit__(self, *exc):
         for thing in (self._client, self._cluster):
