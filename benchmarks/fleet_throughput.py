@@ -1,6 +1,7 @@
 """Fleet throughput: bogie-dates judged per minute by `bogie-jax fleet run` in one process
-(`--engine serial`) against a local Dask cluster of one worker process per core, on the same
-synthetic fleet and machine (issue 50 item 2).
+(`--engine serial`) against a local Dask cluster of `--workers` processes (default: one per
+core), each pinned to its share of the cores, on the same synthetic fleet and machine (issue 50
+item 2, issue 48 item 3).
 
 Each configuration runs the command line in a fresh process into a fresh database, timed from
 the process's start to its end and at each finished bogie-date (the progress lines, stamped as
