@@ -426,9 +426,16 @@ def test_a_layout_of_zero_data_compiles_what_monitor_evaluates(yaw_left_50, capl
     programs = ("residual_jacobian", "_residuals")
 
     def compiled(call) -> set[str]:
+        """The programs `call` compiled, in any thread (`jax.log_compiles()` is a context of
+        the calling thread alone, and `monitor` evaluates the Jacobian's blocks in others)."""
         caplog.clear()
-        with caplog.at_level(logging.WARNING), jax.log_compiles():
-            call()
+        before = jax.config.jax_log_compiles
+        jax.config.update("jax_log_compiles", True)
+        try:
+            with caplog.at_level(logging.WARNING):
+                call()
+        finally:
+            jax.config.update("jax_log_compiles", before)
         return {p for p in programs for r in caplog.records if f"Compiling jit({p})" in r.message}
 
     # one program where the tests' solve tolerance is as loose as the Jacobian's
