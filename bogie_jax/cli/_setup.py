@@ -25,6 +25,8 @@ import os
 import sys
 from pathlib import Path
 
+from ..runtime.cores import core_count
+
 
 _ACCELERATOR_VARIABLES = (
     "CUDA_VISIBLE_DEVICES",
@@ -42,13 +44,6 @@ class Setup:
 
     host_devices: int | None
     cache_dir: Path | None
-
-
-def cpu_cores() -> int:
-    """Cores this process may run on (its CPU affinity where the OS tells it)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return max(1, os.cpu_count() or 1)
 
 
 def accelerator_hinted(environ=os.environ) -> bool:
@@ -71,7 +66,7 @@ def prepare(*, use_cache: bool) -> Setup:
         os.environ.setdefault("EQX_ON_ERROR", "nan")  # read by equinox at import
     devices = None
     if "jax" not in sys.modules and "XLA_FLAGS" not in os.environ and not accelerator_hinted():
-        devices = cpu_cores()
+        devices = core_count()
         os.environ["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}"
     import jax  # after XLA_FLAGS: XLA reads it when JAX loads
 

@@ -13,9 +13,9 @@ raises (`KilledWorker`) and the fleet records that bogie-date as failed and goes
 """
 
 import logging
-import os
 from collections.abc import Callable, Iterable, Iterator
 
+from ..runtime.cores import available_cores, core_count
 from . import _pinning
 from ._task import JudgeTask, Outcome
 from ._worker import error_line
@@ -78,8 +78,7 @@ class DaskEngine:
     def _n_workers(self) -> int:
         if self.workers:
             return self.workers
-        cores = len(_pinning.cores()) if _pinning.can_pin() else os.cpu_count() or 1
-        return max(1, cores // CORES_PER_WORKER)
+        return max(1, core_count() // CORES_PER_WORKER)
 
     def __enter__(self):
         try:
@@ -108,7 +107,7 @@ class DaskEngine:
         """`WORKER_ENVIRONMENT` and the cores each worker is pinned to (`_pinning.py`)."""
         if not _pinning.can_pin():
             return WORKER_ENVIRONMENT
-        groups = _pinning.core_groups(_pinning.cores(), self._n_workers())
+        groups = _pinning.core_groups(available_cores(), self._n_workers())
         return {**WORKER_ENVIRONMENT, _pinning.WORKER_CORES: _pinning.encode(groups)}
 
     def __exit__(self, *exc):

@@ -23,11 +23,6 @@ def can_pin() -> bool:
     return hasattr(os, "sched_setaffinity") and os.path.isdir("/proc/self/task")
 
 
-def cores() -> list[int]:
-    """The cores this process may run on, in order."""
-    return sorted(os.sched_getaffinity(0))
-
-
 def core_groups(available, workers: int) -> list[list[int]]:
     """`available` cores split into `workers` groups of equal size (the last cores left over
     where they do not divide), or one core each, reused in turn, for more workers than cores."""

@@ -30,7 +30,6 @@ is a new object.
 """
 
 import dataclasses
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import diffrax as dfx
@@ -41,6 +40,7 @@ import numpy as np
 
 from ..cost import RunChannels, make_joint_objective, residual_jacobian
 from ..params import BogieParams
+from ..runtime.cores import core_count
 from ..runtime.program_store import stored_program
 from ..runtime.solve_settings import SolveSettings
 from ._nuisance import NuisanceLayout
@@ -59,8 +59,7 @@ def column_blocks(n: int) -> tuple[np.ndarray, ...]:
     of them (on two 8 s runs, 26 columns: 4.5 s in two blocks against 6.7 s in one). The last
     block is padded with zero directions, so that every block has one shape: one compiled
     program."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    count = min(cores or 1, MAX_BLOCKS, max(n, 1)) if jax.default_backend() == "cpu" else 1
+    count = min(core_count(), MAX_BLOCKS, max(n, 1)) if jax.default_backend() == "cpu" else 1
     k = -(-n // count)
     eye = np.eye(n, count * k)
     return tuple(eye[:, i * k : (i + 1) * k] for i in range(count))

@@ -58,12 +58,12 @@ order). `monitor` reports the fit's residual sum of squares over it plus the sen
 """
 
 import dataclasses
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
 
+from ..runtime.cores import core_count
 from ..track import FADE_LENGTH, SPECTRA, TrackIrregularity, fade_envelope
 
 
@@ -279,7 +279,7 @@ def track_error_effect(
     pairs = len(errors[: sampling.pairs])
     perturbed = [_with_error(tracks, e, sign) for e in errors for sign in (1, -1)]
     steps = sampling.refit_steps
-    with ThreadPoolExecutor(sampling.workers or os.cpu_count() or 1) as pool:
+    with ThreadPoolExecutor(sampling.workers or core_count()) as pool:
         refits = [
             pool.submit(_refit, fit.evaluate_on, x, phi, steps) for x in perturbed[: 2 * pairs]
         ]
