@@ -11,6 +11,9 @@ not, so a case is the same whatever the shard, worker, order or mode):
   (`manchester_benchmark()`);
 - `worn-profile` (h): the data from the measured worn wheel on the same rail (`"worn-uic60"`),
   the fit on the new-profile model (`"s1002-uic60"`) as the monitor's nominal `params`;
+  `half-worn-profile`: the same with the data from the wheel halfway between the new and the
+  worn profile (`"half-worn-uic60"`), which the blend of the two wheels' tables that the
+  wear nuisance spans (`detection.py --fit-wear`) does not hold;
 - `track-white` (i): the fit's track record carries an error that is white within the recording
   band `RECORD_BAND` (3-70 m wavelengths, the band of the synthesised tracks: EN 13848-1's D1
   and D2 ranges) instead of one shaped like the track: a `FlatSpectrum` synthesis over that
@@ -67,8 +70,11 @@ from bogie_jax.params import element_names, get_parameter, manchester_benchmark,
 from bogie_jax.track import FlatSpectrum, synthesise_track
 
 
-MODES = ("real-profile", "worn-profile", "track-white", "track-drift", "unjudged-defect")
-WHEELS = ("worn-wheels", "real-profile", "worn-profile")  # each sets the true wheels: one at most
+MODES = (
+    "real-profile", "worn-profile", "half-worn-profile", "track-white", "track-drift",
+    "unjudged-defect",
+)  # fmt: skip
+WHEELS = ("worn-wheels", "real-profile", "worn-profile", "half-worn-profile")  # one at most
 RECORD_BAND = (3.0, 70.0)  # [m] wavelengths of the white record error
 WHITE_RMS = (0.1e-3, 0.3e-3)  # [m]
 TRACK_FADE = 20.0  # [m] the synthesised track's own fade (`synthesise_track`'s default)
@@ -82,6 +88,7 @@ BLOW_OFF = ("blowoff_velocity", "c_blowoff")  # parameters of the nonlinear damp
 CONTACTS = {  # mode: (contact of the data, contact of the fit)
     "real-profile": ("s1002-uic60", "cone"),
     "worn-profile": ("worn-uic60", "s1002-uic60"),
+    "half-worn-profile": ("half-worn-uic60", "s1002-uic60"),
 }
 CONTACT_NAMES = ("cone", *PROFILE_PAIRS)  # `manchester_benchmark(contact=...)`
 COVERAGE = (0.90, 0.98)  # issue 51's targets
@@ -145,15 +152,16 @@ def draw(rng) -> dict:
     }
 
 
-def bogies(on, case: dict, *, fit_contact: str | None = None) -> dict:
+def bogies(on, case: dict, *, fit_contact: str | None = None, fit_wear=None) -> dict:
     """The bogies of a case (`detection.draw_case`'s `case`): `nominal` (the fit's `params`,
-    on `fit_contact` where given, else on the mode's contact of the fit, `CONTACTS`),
+    on `fit_contact` where given, else on the mode's contact of the fit, `CONTACTS`, with the
+    wheel wear `fit_wear` that `monitor` fits from there, `None`: none),
     `truth`, `without_unjudged` (the truth without the unjudged defect, `None` without one),
     the candidate `scenario` (`DefectScenario`), `changed` element names, the case's `label` for
     the tables and its `mismatch` record (what applies)."""
     truth_contact, mode_fit = next((CONTACTS[m] for m in CONTACTS if m in on), ("cone",) * 2)
     fit_contact = fit_contact or mode_fit
-    nominal = manchester_benchmark(contact=fit_contact)
+    nominal = manchester_benchmark(contact=fit_contact, wear=fit_wear)
     base = manchester_benchmark(contact=truth_contact)
     if "worn-wheels" in on:
         base = worn_wheels(base, case["cone_slope_factor"])
@@ -162,7 +170,7 @@ def bogies(on, case: dict, *, fit_contact: str | None = None) -> dict:
     if unjudged and not case["with_candidate"]:
         scenario = DEFECT_SCENARIOS["healthy"]
     truth = scenario.true_params(base)
-    record = {"contact_truth": truth_contact, "contact_fit": fit_contact}
+    record = {"contact_truth": truth_contact, "contact_fit": fit_contact, "fit_wear": fit_wear}
     without = None
     if unjudged:
         name, factor = case["unjudged_element"], case["unjudged_factor"]

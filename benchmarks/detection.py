@@ -32,7 +32,8 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 - `worn-wheels` (f): the true cone slope is nominal times a factor uniform in [0.7, 1.3];
 - model mismatch (issue 51; `benchmarks/_mismatch.py` defines each): `real-profile` (g: data
   from the S1002/UIC60 1:40 contact table, the fit on the cone), `worn-profile` (h: data from
-  the measured worn wheel, the fit on the new S1002 profile), `track-white` (i: the record's
+  the measured worn wheel, the fit on the new S1002 profile; `half-worn-profile`: from a wheel
+  halfway between the two profiles), `track-white` (i: the record's
   error white within 3-70 m wavelengths at 0.1-0.3 mm RMS), `track-drift` (i: a long-wave
   record error, 70-200 m at 0.3-1 mm RMS; in both the monitor is told only the RMS),
   `unjudged-defect` (j: a defect of an element that is not a candidate, in half of the
@@ -40,7 +41,7 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
 - `none`: no imperfection; `all`: (a)-(f); `offset` is another name of `track`.
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal (on the mode's
-contact of the fit, or --fit-contact's),
+contact of the fit, or --fit-contact's; with --fit-wear a wheel wear it fits),
 options=MonitorOptions(track_error=<the records' error RMS: --track-error's and the track
 modes'>, model=<--fit-model's: the linear model by default>))`, default options otherwise):
 truth, verdicts (with every `std_error_*` component of their evidence, and whether an alarm
@@ -87,6 +88,8 @@ Run (from the repository root):
         --out worn-wheels_no_nuisance         # without the contact's model-form nuisance
     python benchmarks/detection.py --imperfection real-profile --fit-contact s1002-uic60 \
         --duration 2 --cases 20 --workers 2 --out real-profile_profile_fit  # the table fitted
+    python benchmarks/detection.py --imperfection half-worn-profile --fit-wear 0.5 \
+        --duration 2 --cases 20 --workers 2 --out half-worn-profile_wear_fit  # wear fitted
 Writes results/detection/<out>.json (records + aggregates + environment) and
 results/detection/<out>.md; <out> is `default_imperfections` for the default imperfections,
 else the imperfections' names joined by `-`.
@@ -202,6 +205,7 @@ def config_of(args) -> dict:
         **({"nuisance": list(args.nuisance)} if args.nuisance is not None else {}),
         **({"fit_model": args.fit_model} if args.fit_model != "linear" else {}),
         **({"fit_contact": args.fit_contact} if args.fit_contact is not None else {}),
+        **({"fit_wear": args.fit_wear} if args.fit_wear is not None else {}),
         **_mismatch.config(args.imperfections, args.drift_band),
     }
 
@@ -238,7 +242,9 @@ def case_inputs(cfg: dict, index: int) -> dict:
     `runs`, the recorded `tracks` and the `options`."""
     case = draw_case(cfg, index)
     on = set(cfg["imperfections"])
-    bogie = _mismatch.bogies(on, case, fit_contact=cfg.get("fit_contact"))
+    bogie = _mismatch.bogies(
+        on, case, fit_contact=cfg.get("fit_contact"), fit_wear=cfg.get("fit_wear")
+    )
     nominal, truth, mismatch = bogie["nominal"], bogie["truth"], dict(bogie["mismatch"])
     model = nonlinear_options() if "nonlinear" in on else ModelOptions()
     duration = cfg["duration_s"]
@@ -794,6 +800,11 @@ def parse_args(argv=None) -> argparse.Namespace:
         "worn-profile: s1002-uic60)",
     )  # fmt: skip
     p.add_argument(
+        "--fit-wear", type=float, default=None, metavar="LEVEL",
+        help="the monitor's model carries a wheel wear at LEVEL in (0, 1] (the s1002-uic60 "
+        "table blended towards the worn wheel's), which it fits (default: none)",
+    )  # fmt: skip
+    p.add_argument(
         "--drift-band", type=_band, default=None, metavar="LO,HI",
         help="[m] the track-drift mode's wavelength band (default 70,200: EN 13848 D3)",
     )  # fmt: skip
@@ -825,6 +836,7 @@ def parse_args(argv=None) -> argparse.Namespace:
         ("--speed-range", args.speed_range, 0 < args.speed_range[0] <= args.speed_range[-1]),
         ("--noise-range", args.noise_range, 0 < args.noise_range[0] <= args.noise_range[-1]),
         ("--max-wear", args.max_wear, 0 <= args.max_wear < 1),
+        ("--fit-wear", args.fit_wear, args.fit_wear is None or 0 < args.fit_wear <= 1),
     )
     for name, given, ok in checks:
         if not ok:

@@ -94,9 +94,13 @@ def test_monitor_contact_and_fit_model_reach_the_fit(tmp_path, monkeypatch):
     with pytest.raises(_Captured):
         argv = ["--contact", "s1002-uic60", "--fit-model", "nonlinear"]
         main(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")])
-    assert [p.contact_geometry for p in params] == ["cone", "s1002-uic60"]
+    with pytest.raises(_Captured):
+        argv = ["--contact", "s1002-uic60", "--wear", "0.4"]
+        main(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")])
+    assert [p.contact_geometry for p in params] == ["cone", "s1002-uic60", "s1002-uic60"]
     assert seen[0].model == ModelOptions() and seen[1].model == nonlinear_options()
     assert seen[1].model.creep_saturation and seen[1].model.nonlinear_dampers
+    assert params[1].wear is None and float(params[2].wear.level) == 0.4
 
 
 @pytest.mark.parametrize(
@@ -105,6 +109,9 @@ def test_monitor_contact_and_fit_model_reach_the_fit(tmp_path, monkeypatch):
         (["--vehicle", "crh380a", "--contact", "s1002-uic60"], "needs `--vehicle manchester`"),
         (["--fit-model", "cubic"], "invalid choice: 'cubic'"),
         (["--contact", "s1002"], "invalid choice: 's1002'"),
+        (["--wear", "0.5"], "`--wear` needs `--contact s1002-uic60`, got `--contact cone`"),
+        (["--contact", "s1002-uic60", "--wear", "0"], "`--wear` = 0.0 must lie in (0, 1]"),
+        (["--contact", "s1002-uic60", "--wear", "1.5"], "`--wear` = 1.5 must lie in (0, 1]"),
     ],
 )
 def test_monitor_bad_model_choice_exits_2_before_fitting(argv, message, tmp_path, capsys):
@@ -117,7 +124,7 @@ def test_monitor_bad_model_choice_exits_2_before_fitting(argv, message, tmp_path
 
 def test_model_choice_goes_with_data_only(capsys):
     assert exit_code(["monitor", "--history", "x", "--fit-model", "nonlinear"]) == 2
-    assert "`--contact` and `--fit-model` go with `--data`" in capsys.readouterr().err
+    assert "`--contact`, `--wear` and `--fit-model` go with `--data`" in capsys.readouterr().err
 
 
 def test_demo_candidates_reach_the_options(tmp_path, monkeypatch):

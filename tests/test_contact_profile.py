@@ -20,6 +20,7 @@ from bogie_jax.contact import (
     equivalent_conicity,
     named_contact_table,
     place_profiles,
+    profile_pair,
     read_profile,
     shipped_profile,
     write_csv,
@@ -138,6 +139,34 @@ def test_s1002_conicity_and_the_worn_wheel(s1002):
     new_curve = equivalent_conicity(s1002.lateral, s1002.rolling_radius_difference, amplitudes)
     worn_curve = equivalent_conicity(worn.lateral, worn.rolling_radius_difference, amplitudes)
     assert np.max(np.abs(worn_curve - new_curve)) > 0.05
+
+
+def test_the_half_worn_wheel_is_the_mean_profile_outside_the_table_blend():
+    """Placed in the wheelset frame, the half-worn wheel is the mean of the new and the worn
+    wheel at every lateral position both cover; its equivalent conicity at 1 mm amplitude is
+    not that of any blend (1 - w) new + w worn of the two tables, w in [0, 1] (the blend is
+    linear in w, so its range is the interval between the ends)."""
+    placed = {
+        name: place_profiles(*profile_pair(name))
+        for name in ("s1002-uic60", "worn-uic60", "half-worn-uic60")
+    }
+    half = placed["half-worn-uic60"]
+    big_y = np.linspace(half.wheel_span[0] + 1e-3, half.wheel_span[1] - 1e-3, 200)
+    mean = 0.5 * (placed["s1002-uic60"].wheel(big_y) + placed["worn-uic60"].wheel(big_y))
+    np.testing.assert_allclose(half.wheel(big_y), mean, atol=2e-6)
+    conicity = {
+        name: float(
+            equivalent_conicity(
+                named_contact_table(name).lateral,
+                named_contact_table(name).rolling_radius_difference,
+                1e-3,
+            )
+        )
+        for name in placed
+    }
+    ends = sorted((conicity["s1002-uic60"], conicity["worn-uic60"]))
+    gap = max(ends[0] - conicity["half-worn-uic60"], conicity["half-worn-uic60"] - ends[1])
+    assert gap > 0.01, conicity
 
 
 def test_table_is_mirror_symmetric_and_continuous_in_roll(s1002):

@@ -641,6 +641,12 @@ def test_default_nuisance_is_the_contacts_model_form():
     both = ("contact.cone_slope", "contact.creep_factor")
     assert check_nuisance(cone, None, DEFAULT_CANDIDATES) == both == default_nuisance(cone)
     assert check_nuisance(profile, None, DEFAULT_CANDIDATES) == ("contact.creep_factor",)
+    worn = manchester_benchmark(contact="s1002-uic60", wear=0.5)
+    wear = ("contact.creep_factor", "wear.level")
+    assert check_nuisance(worn, None, DEFAULT_CANDIDATES) == wear == default_nuisance(worn)
+    new = manchester_benchmark(contact="s1002-uic60", wear=0.0)
+    with pytest.raises(ValueError, match=r"`wear.level` = 0 must be positive .*wear=0.5"):
+        check_nuisance(new, None, DEFAULT_CANDIDATES)
     assert check_nuisance(cone, (), DEFAULT_CANDIDATES) == ()
     judged = (*DEFAULT_CANDIDATES, "contact.creep_factor")
     assert check_nuisance(cone, None, judged) == ("contact.cone_slope",)

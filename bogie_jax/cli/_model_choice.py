@@ -17,6 +17,7 @@ from ._names import lookup
 
 CONTACTS = ("cone", *PROFILE_PAIRS)
 PROFILE_SET = "manchester"  # the parameter set that carries the profile pairs
+WEAR_CONTACT = "s1002-uic60"  # the pair whose table `--wear` blends towards the worn wheel
 FIT_MODELS = {"linear": ModelOptions, "nonlinear": nonlinear_options}
 
 
@@ -27,7 +28,16 @@ def add_contact(p) -> None:
         default="cone",
         choices=CONTACTS,
         help="wheel-rail contact of the manchester set (default cone 1:20; s1002-uic60: S1002 "
-        "on UIC60 1:40; worn-uic60: a measured worn wheel on it)",
+        "on UIC60 1:40; worn-uic60: a measured worn wheel on it; half-worn-uic60: a wheel "
+        "halfway between the two)",
+    )
+    p.add_argument(
+        "--wear",
+        type=float,
+        default=None,
+        metavar="LEVEL",
+        help="with --contact s1002-uic60: the wheels' wear level in (0, 1] (0 new, 1 the "
+        "measured worn wheel; the contact tables blended); monitor fits it from this guess",
     )
 
 
@@ -42,17 +52,23 @@ def add_fit_model(p) -> None:
     )
 
 
-def params_with_contact(vehicle: str, contact: str, *, vehicle_option: str):
-    """The parameter set `vehicle` with the wheel-rail `contact`.
+def params_with_contact(vehicle: str, contact: str, wear=None, *, vehicle_option: str):
+    """The parameter set `vehicle` with the wheel-rail `contact` and the wheels' `wear` level
+    (`None`: none).
 
-    **Raises:** `UsageError` for an unknown set, or a profile contact on a set other than
-    manchester (the one whose wheels the profile pairs fit)."""
+    **Raises:** `UsageError` for an unknown set, a profile contact on a set other than
+    manchester (the one whose wheels the profile pairs fit), or a wear level outside (0, 1] or
+    without `--contact s1002-uic60`."""
     make = lookup("vehicle", vehicle, vehicle_option)
+    if wear is not None and contact != WEAR_CONTACT:
+        raise UsageError(f"`--wear` needs `--contact {WEAR_CONTACT}`, got `--contact {contact}`")
+    if wear is not None and not 0 < wear <= 1:
+        raise UsageError(f"`--wear` = {wear!r} must lie in (0, 1]")
     if contact == "cone":
         return make()
     if vehicle != PROFILE_SET:
         raise UsageError(f"`--contact {contact}` needs `{vehicle_option} {PROFILE_SET}`")
-    return make(contact=contact)
+    return make(contact=contact, wear=wear)
 
 
 def fit_model(name: str) -> ModelOptions:

@@ -151,8 +151,8 @@ def run(args, progress) -> int:
         raise UsageError(
             "`--candidates` goes with `--data` (a trend follows the results' elements)"
         )
-    if args.data is None and (args.contact, args.fit_model) != ("cone", "linear"):
-        raise UsageError("`--contact` and `--fit-model` go with `--data`")
+    if args.data is None and (args.contact, args.fit_model, args.wear) != ("cone", "linear", None):
+        raise UsageError("`--contact`, `--wear` and `--fit-model` go with `--data`")
     if not 0 < args.false_alarm_rate < 0.5:
         raise UsageError(f"`--false-alarm-rate` = {args.false_alarm_rate!r} must lie in (0, 0.5)")
     if not 0 <= args.track_error <= 10:
@@ -167,7 +167,7 @@ def run(args, progress) -> int:
 
 def run_data(args, progress) -> int:
     date = _date(args.date)
-    params = params_with_contact(args.vehicle, args.contact, vehicle_option="--vehicle")
+    params = params_with_contact(args.vehicle, args.contact, args.wear, vehicle_option="--vehicle")
     candidates = check_candidates(params, args.candidates)
     for f in args.data + (args.track or []):
         if not Path(f).is_file():
@@ -208,7 +208,10 @@ def run_data(args, progress) -> int:
     progress.say(verdict_table(result))
     fitted = fitted_signals(result, measurements, tracks, params, progress, equations=options.model)
     source = "bogie-jax monitor --data " + " ".join(args.data)
-    extra = {"data": list(args.data), "contact": args.contact, "fit_model": args.fit_model}
+    extra = {
+        "data": list(args.data), "contact": args.contact, "wear": args.wear,
+        "fit_model": args.fit_model,
+    }  # fmt: skip
     paths = write_outputs(
         args.out, result, measurements, fitted, date=date, source=source, notes=[],
         extra=extra, progress=progress,

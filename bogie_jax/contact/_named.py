@@ -5,15 +5,25 @@
   Contact Benchmark (Shackleton and Iwnicki, VSD 46, 2008).
 - `"worn-uic60"`: the measured worn wheel of `profiles/` on the same rail and track; its y
   origin is taken as the flange back (its first point lies 3.9 mm from it, on the flange root).
+- `"half-worn-uic60"`: a wheel halfway between the two on the same rail and track: at every
+  distance from the flange back, its height relative to the running circle is the mean of the
+  new and the worn wheel's (on the worn wheel's points, the S1002 interpolated by its cubic
+  spline). The profiles are averaged, not their contact tables: the contact geometry is not
+  linear in the profile, so this wheel lies outside the family that blending the two tables
+  spans (`WheelWear`), a wheel whose wear that family does not hold exactly.
 
 The files are unchanged copies from the CONTACT package (Apache-2.0), see `profiles/README.md`.
 """
 
+import dataclasses
 import functools
 import importlib.resources
 
-from ._placement import ProfileSetup, place_profiles
-from ._profile import Profile, read_profile
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from ._placement import RUNNING_CIRCLE_OFFSET, ProfileSetup, place_profiles
+from ._profile import WHEEL, Profile, read_profile
 from ._search import ContactTable, contact_table
 
 
@@ -21,7 +31,8 @@ _FILES = {
     "s1002-uic60": ("MBench_S1002_v3.prw", "MBench_UIC60_v3.prr", ProfileSetup()),
     "worn-uic60": ("worn_high_mileage.prw", "MBench_UIC60_v3.prr", ProfileSetup(flange_back=0.0)),
 }
-PROFILE_PAIRS = tuple(_FILES)
+_HALFWAY = {"half-worn-uic60": ("s1002-uic60", "worn-uic60")}
+PROFILE_PAIRS = (*_FILES, *_HALFWAY)
 """Names of the shipped profile pairs."""
 
 
@@ -32,10 +43,31 @@ def shipped_profile(filename: str):
 
 def profile_pair(name: str) -> tuple[Profile, Profile, ProfileSetup]:
     """The wheel, the rail and the set-up of a named pair (`PROFILE_PAIRS`)."""
+    if name in _HALFWAY:
+        return _halfway_pair(*_HALFWAY[name])
     if name not in _FILES:
-        raise ValueError(f"unknown profile pair {name!r}; choose one of {', '.join(_FILES)}")
+        raise ValueError(f"unknown profile pair {name!r}; choose one of {', '.join(PROFILE_PAIRS)}")
     wheel, rail, setup = _FILES[name]
     return read_profile(shipped_profile(wheel)), read_profile(shipped_profile(rail)), setup
+
+
+def _halfway_pair(first: str, second: str) -> tuple[Profile, Profile, ProfileSetup]:
+    """The wheel halfway between the wheels of two pairs on one rail (module docstring), on the
+    second wheel's points within both profiles' span; set up with its flange back at y = 0."""
+    (wheel_a, rail, setup), (wheel_b, _, setup_b) = profile_pair(first), profile_pair(second)
+    u_a, z_a = _from_flange_back(wheel_a, setup)
+    u_b, z_b = _from_flange_back(wheel_b, setup_b)
+    inside = (u_b >= u_a[0]) & (u_b <= u_a[-1])
+    spline_a = CubicSpline(u_a, z_a)
+    z = 0.5 * (spline_a(u_b[inside]) + z_b[inside])
+    wheel = Profile(y=u_b[inside], z=z, kind=WHEEL, source=f"halfway between {first}, {second}")
+    return wheel, rail, dataclasses.replace(setup, flange_back=0.0)
+
+
+def _from_flange_back(wheel: Profile, setup: ProfileSetup) -> tuple[np.ndarray, np.ndarray]:
+    """Distance from the flange back [m] and height below the running circle [m] (z down)."""
+    u = wheel.y - setup.flange_back
+    return u, wheel.z - float(np.interp(RUNNING_CIRCLE_OFFSET, u, wheel.z))
 
 
 @functools.lru_cache(maxsize=8)

@@ -14,7 +14,11 @@
   with the linear cone model, data from worn wheels (cone slope x 0.7-1.3) moved healthy
   anti-yaw dampers by up to 33 % and primary dampers by up to 45 %, data with creep saturation
   and blow-off dampers primary and secondary dampers by 2-5 %, both at many standard errors
-  (docs/monitoring.md). `nuisance=()` fits none.
+  (docs/monitoring.md). A profile contact table fixes the conicity, so there the creep
+  factor alone; where `params` carries a wheel wear (`BogieParams.wear`: the table blended
+  from the new towards a worn wheel's), its level `wear.level` as well, from the nominal
+  level given (the wear's best guess, above 0 since it is fitted on log scale).
+  `nuisance=()` fits none.
 
 The compiled program differentiates r with respect to x = [theta (candidates, then nuisance
 parameters), position_offset (R), log_speed_factor (R)]. The host LM fits v = [phi (the
@@ -49,9 +53,14 @@ MODEL_FORM_NUISANCE: dict[str, tuple[str, ...]] = {  # per `BogieParams.contact_
 DEFAULT_NUISANCE = MODEL_FORM_NUISANCE["cone"]
 
 
+WEAR_NUISANCE = "wear.level"
+
+
 def default_nuisance(params) -> tuple[str, ...]:
-    """The model-form nuisance parameters of `params`' contact geometry (module docstring)."""
-    return MODEL_FORM_NUISANCE.get(params.contact_geometry, ("contact.creep_factor",))
+    """The model-form nuisance parameters of `params`' contact geometry (module docstring), and
+    the wheel wear `wear.level` where `params` carries one (`BogieParams.wear`)."""
+    names = MODEL_FORM_NUISANCE.get(params.contact_geometry, ("contact.creep_factor",))
+    return names + ((WEAR_NUISANCE,) if params.wear is not None else ())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -144,8 +153,9 @@ def check_nuisance(params, nuisance, candidates) -> tuple[str, ...]:
     from ..params import get_parameter, resolve_parameter
 
     if nuisance is None:
-        return tuple(n for n in default_nuisance(params) if n not in candidates)
-    names = tuple((nuisance,) if isinstance(nuisance, str) else nuisance)
+        names = tuple(n for n in default_nuisance(params) if n not in candidates)
+    else:
+        names = tuple((nuisance,) if isinstance(nuisance, str) else nuisance)
     dups = sorted({n for n in names if names.count(n) > 1})
     if dups:
         raise ValueError(f"`nuisance` repeats {', '.join(dups)}")
@@ -156,7 +166,16 @@ def check_nuisance(params, nuisance, candidates) -> tuple[str, ...]:
         resolve_parameter(params, name, " in `nuisance`")
         value = float(np.asarray(get_parameter(params, name)))
         if not value > 0:
+            hint = _WEAR_HINT if name == WEAR_NUISANCE else ""
             raise ValueError(
-                f"`nuisance` parameter `{name}` = {value:g} must be positive (fitted on log scale)"
+                f"`nuisance` parameter `{name}` = {value:g} must be positive (fitted on log "
+                f"scale){hint}"
             )
     return names
+
+
+_WEAR_HINT = (
+    "; give the wear's best guess in (0, 1] as the nominal (e.g. "
+    "`manchester_benchmark(contact='s1002-uic60', wear=0.5)`), or `wear=None` for a wheel "
+    "known to be new"
+)

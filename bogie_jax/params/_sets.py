@@ -22,20 +22,24 @@ from ._groups import (
 )
 
 
+CONTACTS = ("cone", "s1002-uic60", "worn-uic60", "half-worn-uic60")
+"""The contact geometries of `manchester_benchmark`: the cone, and the profile pairs of
+`bogie_jax.contact.PROFILE_PAIRS`."""
+
+
 def manchester_benchmark(contact: str = "cone", wear: float | None = None) -> BogieParams:
     """Manchester benchmark vehicle 1 bogie (reference doc 5.1).
 
     `contact`: `"cone"` (default) a 1:20 conical wheel on a 0.3 m rail head; `"s1002-uic60"`
     the Manchester Contact Benchmark's new S1002 wheel on UIC60 inclined 1:40, gauge 1435 mm,
     flange-back spacing 1360 mm (its contact table replaces the cone's geometry; the `contact`
-    fields keep the material data and r0); `"worn-uic60"` a measured worn wheel on that rail.
+    fields keep the material data and r0); `"worn-uic60"` a measured worn wheel on that rail;
+    `"half-worn-uic60"` a wheel whose profile lies halfway between the two.
     `wear`: with `"s1002-uic60"`, a `WheelWear` level in [0, 1] blending the new and the worn
     wheel's tables (a differentiable nuisance parameter, `wear.level`); None: no wear parameter.
     """
-    if contact not in ("cone", "s1002-uic60", "worn-uic60"):
-        raise ValueError(
-            f"unknown contact {contact!r}; choose 'cone', 's1002-uic60' or 'worn-uic60'"
-        )
+    if contact not in CONTACTS:
+        raise ValueError(f"unknown contact {contact!r}; choose one of {', '.join(CONTACTS)}")
     if wear is not None and contact != "s1002-uic60":
         raise ValueError(f"`wear` needs contact='s1002-uic60', got contact={contact!r}")
     return BogieParams(
