@@ -797,7 +797,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument(
         "--fit-contact", choices=_mismatch.CONTACT_NAMES, default=None,
         help="the contact of the monitor's model (default: the mode's, the cone unless "
-        "worn-profile: s1002-uic60)",
+        "worn-profile or half-worn-profile: s1002-uic60)",
     )  # fmt: skip
     p.add_argument(
         "--fit-wear", type=float, default=None, metavar="LEVEL",
