@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from bogie_jax.contact import (
+    PROFILE_PAIRS,
     Profile,
     ProfileError,
     ProfileSetup,
@@ -25,6 +26,7 @@ from bogie_jax.contact import (
     shipped_profile,
     write_csv,
 )
+from bogie_jax.params import manchester_benchmark
 
 
 try:  # run from tests/ (CI) or from the repository root
@@ -167,6 +169,13 @@ def test_the_half_worn_wheel_is_the_mean_profile_outside_the_table_blend():
     ends = sorted((conicity["s1002-uic60"], conicity["worn-uic60"]))
     gap = max(ends[0] - conicity["half-worn-uic60"], conicity["half-worn-uic60"] - ends[1])
     assert gap > 0.01, conicity
+
+
+def test_every_shipped_pair_is_a_contact_of_the_manchester_set():
+    for name in PROFILE_PAIRS:
+        assert manchester_benchmark(contact=name).contact_geometry == name
+    with pytest.raises(ValueError, match="unknown contact 's1002'; choose one of cone, s1002"):
+        manchester_benchmark(contact="s1002")
 
 
 def test_table_is_mirror_symmetric_and_continuous_in_roll(s1002):
