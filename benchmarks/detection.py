@@ -47,11 +47,12 @@ modes'>, model=<--fit-model's: the linear model by default>))`, default options 
 truth, verdicts (with every `std_error_*` component of their evidence, and whether an alarm
 was withheld as not explained), estimates (and, with a track error, the fitted values before
 its bias is removed), standard errors, 95 % intervals,
-fit status (with the horizon stages fitted, the misfit ratio and the per-channel noise
-estimates, `FitSummary`), whether the data are explained (`MonitorResult.explained`) with the
-goodness-of-fit tests, the misfit run-groups and the suspects, each run's fitted speed factor
-and track position against their true values, the mismatch applied (with the unjudged defect's
-change of the signals over the noise), wall times; each finished case is appended as one line of
+fit status (with the horizon stages fitted, the misfit ratio, the per-channel noise
+estimates and the nuisance parameters' fitted values, `FitSummary`), whether the data are
+explained (`MonitorResult.explained`) with the goodness-of-fit tests, the misfit run-groups
+and the suspects, each run's fitted speed factor and track position against their true
+values, the mismatch applied (with the unjudged defect's change of the signals over the
+noise), wall times; each finished case is appended as one line of
 `results/detection/<out>.jsonl` (per shard: `<out>.shard<i>of<n>.jsonl`) and a re-run skips
 the cases found there.
 
@@ -329,6 +330,10 @@ def run_case(cfg: dict, index: int) -> dict:
         "track_error_white_share": result.fit.track_error_white_share,
         "track_error_long_wave_share": result.fit.track_error_long_wave_share,
         "channel_noise": [list(c) for c in result.fit.channel_noise],
+        "nuisance": {
+            name: {key: float(p[key]) for key in ("estimate", "std_error", "nominal")}
+            for name, p in result.fit.nuisance.items()
+        },
     }
     record["runs"] = [
         {
