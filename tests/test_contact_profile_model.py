@@ -192,6 +192,44 @@ def test_wear_blends_the_new_and_worn_tables():
     assert np.all(np.isfinite(np.asarray(_vector_field(0.0, jnp.asarray(y), model))))
 
 
+def test_conicity_factor_scales_the_rolling_radius_difference():
+    """`wear.conicity_factor` k scales Delta r about the centred contact: the scaled geometry's
+    Delta r and its first two derivatives are k times scipy's splines of the smoothed table's
+    (and so its equivalent conicity, a linear functional of Delta r), the other six quantities
+    stay bit for bit, k = 1 is the blend itself bit for bit, and d/dk (forward mode through the
+    constants) is the rolling radii's deviation from their centred value."""
+    from bogie_jax.model import model_constants
+    from bogie_jax.params import set_parameters
+
+    params = manchester_benchmark(contact="s1002-uic60", wear=0.3)
+    blend = model_constants(params).geometry
+    table_new, table_worn = named_contact_table("s1002-uic60"), named_contact_table("worn-uic60")
+    new, worn = profile_geometry(table_new), profile_geometry(table_worn)
+    expected_blend = 0.7 * np.asarray(new.coefficients) + 0.3 * np.asarray(worn.coefficients)
+    np.testing.assert_allclose(blend.coefficients, expected_blend, rtol=1e-12)
+
+    def geometry(k):
+        return model_constants(set_parameters(params, {"wear.conicity_factor": k})).geometry
+
+    np.testing.assert_array_equal(np.asarray(geometry(1.0).coefficients), blend.coefficients)
+    k = 0.6
+    scaled = geometry(k)
+    step = table_new.lateral[1] - table_new.lateral[0]
+    dr = 0.7 * table_new.rolling_radius_difference + 0.3 * table_worn.rolling_radius_difference
+    spline = CubicSpline(table_new.lateral, gaussian_filter1d(dr, SMOOTHING / step, mode="nearest"))
+    y = np.random.default_rng(1).uniform(-0.011, 0.011, 100)
+    for nu, got in enumerate(np.asarray(a) for a in scaled.evaluate(jnp.asarray(y))):
+        np.testing.assert_allclose(got[0] - got[1], k * spline(y, nu), rtol=1e-9, atol=1e-12)
+    unscaled = blend.coefficients[..., 2:]
+    np.testing.assert_array_equal(np.asarray(scaled.coefficients[..., 2:]), unscaled)
+    radii = np.asarray(blend.evaluate(jnp.asarray(y))[0][:2])
+    centred = np.asarray(blend.evaluate(0.0)[0][:2])
+    along = np.asarray(
+        jax.jvp(lambda k: geometry(k).evaluate(jnp.asarray(y))[0][:2], (k,), (1.0,))[1]
+    )
+    np.testing.assert_allclose(along, radii - centred[:, None], rtol=1e-9, atol=1e-15)
+
+
 def test_leaving_the_table_is_a_solve_status_not_a_nan(pair):
     """A wheelset thrown beyond the 12 mm table: with the event condition the solve stops with
     `event_occurred` and finite states; the cone never triggers it."""

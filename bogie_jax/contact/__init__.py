@@ -45,6 +45,7 @@ from ._profile_geometry import (
     ProfileGeometry as ProfileGeometry,
     blend_geometries as blend_geometries,
     profile_geometry as profile_geometry,
+    scale_conicity as scale_conicity,
 )
 from ._search import (
     COLUMNS as COLUMNS,

@@ -137,3 +137,20 @@ def blend_geometries(new: ProfileGeometry, worn: ProfileGeometry, level) -> Prof
     tables must share their lateral grid (`start`, `step`), as the shipped pairs do."""
     level = jnp.asarray(level)
     return jax.tree_util.tree_map(lambda a, b: a + level * (b - a), new, worn)
+
+
+def scale_conicity(geometry: ProfileGeometry, factor) -> ProfileGeometry:
+    """`geometry` with each wheel's rolling radius moved from its centred value r_0 by `factor`
+    [-] times as much: r(y) -> r_0 + factor (r(y) - r_0). The rolling radius difference Delta r
+    scales by `factor`, and so does the equivalent conicity at every amplitude (a linear
+    functional of Delta r; UIC 519, 2004); the contact angles, contact positions, roll and
+    height stay as they are. Differentiable in `factor`; a factor of 1 returns the coefficients
+    unchanged bit for bit."""
+    change = jnp.asarray(factor) - 1.0
+    radii = geometry.coefficients[..., :2]  # rolling radius left, right: (n - 1, 4, 2)
+    centred = geometry.evaluate(0.0)[0][:2]
+    about = jnp.zeros_like(radii).at[:, 3, :].set(centred)  # r_0 in the constant term only
+    radii = radii + change * (radii - about)
+    return eqx.tree_at(
+        lambda g: g.coefficients, geometry, geometry.coefficients.at[..., :2].set(radii)
+    )

@@ -14,6 +14,7 @@ from ..contact import (
     hertz_contact,
     named_contact_table,
     profile_geometry,
+    scale_conicity,
 )
 from ..params import BogieParams
 from ._layout import GRAVITY
@@ -53,9 +54,10 @@ def model_constants(params: BogieParams) -> ModelConstants:
         )
     else:  # a named profile pair: its table, built once per process outside the trace
         geometry = profile_geometry(named_contact_table(params.contact_geometry))
-        if params.wear is not None:  # blend towards the worn wheel (differentiable nuisance)
+        if params.wear is not None:  # blend towards the worn wheel, scale (differentiable)
             worn = profile_geometry(named_contact_table("worn-uic60"))
             geometry = blend_geometries(geometry, worn, params.wear.level)
+            geometry = scale_conicity(geometry, params.wear.conicity_factor)
     primary_preload = (m.frame.mass + m.carbody_mass) * GRAVITY / 4
     secondary_preload = m.carbody_mass * GRAVITY / 2
     vertical_wheel_load = (m.wheelset.mass * GRAVITY + 2 * primary_preload) / 2

@@ -201,12 +201,22 @@ class YawDampers(_Group):
 
 
 class WheelWear(_Group):
-    """Wear of a profile pair's wheel as one differentiable scalar (only with a profile contact
+    """Wear of a profile pair's wheel as two differentiable scalars (only with a profile contact
     geometry, `BogieParams.contact_geometry` = `"s1002-uic60"`): the contact table is the blend
     (1 - level) new + level worn of the new S1002's and the measured worn wheel's tables (both on
-    UIC60 1:40). The equivalent conicity, a linear functional of Delta r, blends the same way:
-    tan(gamma_e) = (1 - level) tan(gamma_e, new) + level tan(gamma_e, worn) at every amplitude."""
+    UIC60 1:40), its rolling radii then moved from their centred value `conicity_factor` times as
+    far (`bogie_jax.contact.scale_conicity`; 1 leaves the blend as it is). The equivalent
+    conicity, a linear functional of Delta r, follows: tan(gamma_e) = conicity_factor ((1 -
+    level) tan(gamma_e, new) + level tan(gamma_e, worn)) at every amplitude. The level moves
+    along the one measured wear path; the factor reaches wheels off that path whose conicity
+    lies outside it (a wheel worn hollow, or less than the path says)."""
 
     level: float = physical(
         unit="-", valid=(0.0, 1.0), bounds=(0.0, 1.0), doc="wheel wear: 0 new, 1 the worn profile"
+    )
+    conicity_factor: float = physical(
+        unit="-",
+        valid=(0.0, 10.0),
+        bounds=(0.5, 2.0),
+        doc="the blend's rolling radius difference (and equivalent conicity) times this",
     )

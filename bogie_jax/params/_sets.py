@@ -36,7 +36,8 @@ def manchester_benchmark(contact: str = "cone", wear: float | None = None) -> Bo
     fields keep the material data and r0); `"worn-uic60"` a measured worn wheel on that rail;
     `"half-worn-uic60"` a wheel whose profile lies halfway between the two.
     `wear`: with `"s1002-uic60"`, a `WheelWear` level in [0, 1] blending the new and the worn
-    wheel's tables (a differentiable nuisance parameter, `wear.level`); None: no wear parameter.
+    wheel's tables (a differentiable nuisance parameter, `wear.level`), with its conicity
+    factor `wear.conicity_factor` at 1; None: no wear parameter.
     """
     if contact not in CONTACTS:
         raise ValueError(f"unknown contact {contact!r}; choose one of {', '.join(CONTACTS)}")
@@ -60,7 +61,7 @@ def manchester_benchmark(contact: str = "cone", wear: float | None = None) -> Bo
         primary=PrimarySuspension(kx=31.391e6, ky=3.884e6, kz=1.22e6, cx=15e3, cy=2e3, cz=4e3),
         secondary=SecondarySuspension(kx=160e3, ky=160e3, kz=430e3, cy=32e3, cz=20e3),
         yaw_dampers=YawDampers(c=400e3, blowoff_velocity=0.015, c_blowoff=10e3),
-        wear=None if wear is None else WheelWear(level=wear),
+        wear=None if wear is None else WheelWear(level=wear, conicity_factor=1.0),
         contact_geometry=contact,
     )
 
