@@ -8,6 +8,7 @@ import types
 import pytest
 
 from bogie_jax.cli import main
+from bogie_jax.contact import measured_wheel, shipped_profile
 from bogie_jax.monitor import DEFAULT_CANDIDATES, nonlinear_options
 from bogie_jax.params import ModelOptions
 
@@ -75,6 +76,7 @@ def test_candidates_go_with_data_only(capsys):
 
 
 CHOSEN = ["yaw_dampers.c", "primary.1L.kz"]
+S1002 = shipped_profile("MBench_S1002_v3.prw")
 
 
 def test_monitor_candidates_reach_the_options(tmp_path, monkeypatch):
@@ -97,7 +99,12 @@ def test_monitor_contact_and_fit_model_reach_the_fit(tmp_path, monkeypatch):
     with pytest.raises(_Captured):
         argv = ["--contact", "s1002-uic60", "--wear", "0.4"]
         main(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")])
-    assert [p.contact_geometry for p in params] == ["cone", "s1002-uic60", "s1002-uic60"]
+    wheel = str(shipped_profile("worn_high_mileage.prw"))
+    with pytest.raises(_Captured):
+        argv = ["--wheel-profile", wheel, "--flange-back", "0"]
+        main(["monitor", "--data", a, *argv, "--out", str(tmp_path / "o")])
+    assert [p.contact_geometry for p in params[:3]] == ["cone", "s1002-uic60", "s1002-uic60"]
+    assert params[3].contact_geometry == measured_wheel(wheel, 0.0)
     assert seen[0].model == ModelOptions() and seen[1].model == nonlinear_options()
     assert seen[1].model.creep_saturation and seen[1].model.nonlinear_dampers
     assert params[1].wear is None and float(params[2].wear.level) == 0.4
@@ -112,6 +119,19 @@ def test_monitor_contact_and_fit_model_reach_the_fit(tmp_path, monkeypatch):
         (["--wear", "0.5"], "`--wear` needs `--contact s1002-uic60`, got `--contact cone`"),
         (["--contact", "s1002-uic60", "--wear", "0"], "`--wear` = 0.0 must lie in (0, 1]"),
         (["--contact", "s1002-uic60", "--wear", "1.5"], "`--wear` = 1.5 must lie in (0, 1]"),
+        (["--wheel-profile", "no.prw"], "no.prw: no such profile file"),
+        (
+            ["--wheel-profile", str(S1002), "--flange-back", "900"],
+            "`ProfileSetup.flange_back` = 0.9 is outside [-0.5, 0.5]",
+        ),
+        (
+            ["--wheel-profile", str(shipped_profile("MBench_UIC60_v3.prr"))],
+            "expected a wheel profile, the file holds a rail",
+        ),
+        (
+            ["--contact", "s1002-uic60", "--wheel-profile", "x.prw"],
+            "`--wheel-profile` takes the place of `--contact` and `--wear`",
+        ),
     ],
 )
 def test_monitor_bad_model_choice_exits_2_before_fitting(argv, message, tmp_path, capsys):
@@ -124,7 +144,8 @@ def test_monitor_bad_model_choice_exits_2_before_fitting(argv, message, tmp_path
 
 def test_model_choice_goes_with_data_only(capsys):
     assert exit_code(["monitor", "--history", "x", "--fit-model", "nonlinear"]) == 2
-    assert "`--contact`, `--wear` and `--fit-model` go with `--data`" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "`--contact`, `--wear`, `--wheel-profile` and `--fit-model` go with `--data`" in err
 
 
 def test_demo_candidates_reach_the_options(tmp_path, monkeypatch):

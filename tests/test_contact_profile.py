@@ -19,6 +19,7 @@ from bogie_jax.contact import (
     cone_geometry,
     contact_table,
     equivalent_conicity,
+    measured_wheel,
     named_contact_table,
     place_profiles,
     profile_pair,
@@ -169,6 +170,24 @@ def test_the_half_worn_wheel_is_the_mean_profile_outside_the_table_blend():
     ends = sorted((conicity["s1002-uic60"], conicity["worn-uic60"]))
     gap = max(ends[0] - conicity["half-worn-uic60"], conicity["half-worn-uic60"] - ends[1])
     assert gap > 0.01, conicity
+
+
+def test_a_measured_wheel_is_a_contact_of_the_manchester_set(tmp_path):
+    """A measured wheel file on the shipped rail: the S1002 file at its flange back gives the
+    `s1002-uic60` table bit for bit; the name changes with the file's bytes, and a file changed
+    after it was named is refused rather than read."""
+    s1002 = shipped_profile("MBench_S1002_v3.prw")
+    copy = tmp_path / "wheel.prw"
+    copy.write_bytes(s1002.read_bytes())
+    name = measured_wheel(copy, flange_back=-0.070)
+    assert manchester_benchmark(contact=name).contact_geometry == name
+    table, named = named_contact_table(name), named_contact_table("s1002-uic60")
+    for column in ("lateral", "rolling_radius", "contact_angle", "wheel_contact_y", "roll"):
+        np.testing.assert_array_equal(getattr(table, column), getattr(named, column))
+    copy.write_text(copy.read_text().replace("0.0", "0.00", 1))
+    assert measured_wheel(copy, flange_back=-0.070) != name
+    with pytest.raises(ProfileError, match="changed since `measured_wheel` read it"):
+        profile_pair(name)
 
 
 def test_every_shipped_pair_is_a_contact_of_the_manchester_set():

@@ -35,7 +35,7 @@ def run(args, progress) -> int:
             f"need 0 < `--v-min` < `--v-max` <= 300 m/s, got {args.v_min:g} and {args.v_max:g}"
         )
     require_suffix("--plot", args.plot, ".png")
-    params = params_with_contact(args.params, args.contact, args.wear, vehicle_option="--params")
+    params = params_with_contact(args.params, args, vehicle_option="--params")
     progress.compiling("the stability sweep")
     result = critical_speed(params, v_min=args.v_min, v_max=args.v_max)
     if bool(result.found):

@@ -151,8 +151,11 @@ def run(args, progress) -> int:
         raise UsageError(
             "`--candidates` goes with `--data` (a trend follows the results' elements)"
         )
-    if args.data is None and (args.contact, args.fit_model, args.wear) != ("cone", "linear", None):
-        raise UsageError("`--contact`, `--wear` and `--fit-model` go with `--data`")
+    model = (args.contact, args.fit_model, args.wear, args.wheel_profile)
+    if args.data is None and model != ("cone", "linear", None, None):
+        raise UsageError(
+            "`--contact`, `--wear`, `--wheel-profile` and `--fit-model` go with `--data`"
+        )
     if not 0 < args.false_alarm_rate < 0.5:
         raise UsageError(f"`--false-alarm-rate` = {args.false_alarm_rate!r} must lie in (0, 0.5)")
     if not 0 <= args.track_error <= 10:
@@ -167,7 +170,7 @@ def run(args, progress) -> int:
 
 def run_data(args, progress) -> int:
     date = _date(args.date)
-    params = params_with_contact(args.vehicle, args.contact, args.wear, vehicle_option="--vehicle")
+    params = params_with_contact(args.vehicle, args, vehicle_option="--vehicle")
     candidates = check_candidates(params, args.candidates)
     for f in args.data + (args.track or []):
         if not Path(f).is_file():
@@ -210,6 +213,7 @@ def run_data(args, progress) -> int:
     source = "bogie-jax monitor --data " + " ".join(args.data)
     extra = {
         "data": list(args.data), "contact": args.contact, "wear": args.wear,
+        "wheel_profile": args.wheel_profile, "flange_back_mm": args.flange_back,
         "fit_model": args.fit_model,
     }  # fmt: skip
     paths = write_outputs(

@@ -12,18 +12,27 @@
   linear in the profile, so this wheel lies outside the family that blending the two tables
   spans (`WheelWear`), a wheel whose wear that family does not hold exactly.
 
+A measured wheel (`measured_wheel(path, flange_back)`: a profile file, e.g. from a depot's
+profilometer) runs on the same UIC60 1:40 rail and track as the pairs above; its contact name
+carries the flange back's position in the file's frame, a digest of the file's bytes and its
+absolute path, so that every process builds the same table from it and a program compiled for
+one measurement is never reused for another.
+
 The files are unchanged copies from the CONTACT package (Apache-2.0), see `profiles/README.md`.
 """
 
 import dataclasses
 import functools
+import hashlib
 import importlib.resources
+import pathlib
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from ..params import MEASURED_WHEEL as MEASURED
 from ._placement import RUNNING_CIRCLE_OFFSET, ProfileSetup, place_profiles
-from ._profile import WHEEL, Profile, read_profile
+from ._profile import WHEEL, Profile, ProfileError, read_profile
 from ._search import ContactTable, contact_table
 
 
@@ -36,13 +45,51 @@ PROFILE_PAIRS = (*_FILES, *_HALFWAY)
 """Names of the shipped profile pairs."""
 
 
+def measured_wheel(path, flange_back: float = -0.070) -> str:
+    """The contact name of a measured wheel profile on the shipped UIC60 1:40 rail (gauge
+    1435 mm, flange-back spacing 1360 mm, r0 = 0.46 m), for `BogieParams.contact_geometry`
+    (`manchester_benchmark(contact=...)`).
+
+    - `path`: a wheel profile file (`.prw`, or `.csv` of y, z in mm; `read_profile`).
+    - `flange_back` [m], in [-0.5, 0.5]: y of the flange back in the file's frame (-0.070 for
+      the S1002 file; 0 where the file's origin is the flange back).
+
+    **Raises:** `ProfileError` (a `ValueError`) for a file that is not a wheel profile or a
+    `flange_back` outside its range, before any table is built."""
+    path = pathlib.Path(path).resolve()
+    read_profile(path, kind=WHEEL)
+    ProfileSetup(flange_back=flange_back)  # checks the range
+    return f"{MEASURED}{float(flange_back)!r}:{_digest(path)}:{path}"
+
+
+def _digest(path: pathlib.Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+def is_measured(name: str) -> bool:
+    """Whether `name` is a measured wheel's contact name (`measured_wheel`)."""
+    return name.startswith(MEASURED)
+
+
+def _measured_pair(name: str) -> tuple[Profile, Profile, ProfileSetup]:
+    flange_back, digest, path = name[len(MEASURED) :].split(":", 2)
+    if not pathlib.Path(path).is_file() or _digest(pathlib.Path(path)) != digest:
+        raise ProfileError(f"{path}: missing or changed since `measured_wheel` read it")
+    rail = read_profile(shipped_profile(_FILES["s1002-uic60"][1]))
+    setup = dataclasses.replace(_FILES["s1002-uic60"][2], flange_back=float(flange_back))
+    return read_profile(path, kind=WHEEL), rail, setup
+
+
 def shipped_profile(filename: str):
     """Path of a profile file shipped in `bogie_jax/contact/profiles/`."""
     return importlib.resources.files(__package__) / "profiles" / filename
 
 
 def profile_pair(name: str) -> tuple[Profile, Profile, ProfileSetup]:
-    """The wheel, the rail and the set-up of a named pair (`PROFILE_PAIRS`)."""
+    """The wheel, the rail and the set-up of a named pair (`PROFILE_PAIRS`) or of a measured
+    wheel (`measured_wheel`)."""
+    if is_measured(name):
+        return _measured_pair(name)
     if name in _HALFWAY:
         return _halfway_pair(*_HALFWAY[name])
     if name not in _FILES:
@@ -72,6 +119,7 @@ def _from_flange_back(wheel: Profile, setup: ProfileSetup) -> tuple[np.ndarray, 
 
 @functools.lru_cache(maxsize=8)
 def named_contact_table(name: str, max_lateral: float = 0.012, step: float = 1e-4) -> ContactTable:
-    """The contact table of a named pair (computed once per process, a few seconds)."""
+    """The contact table of a named pair or a measured wheel (computed once per process, a
+    few seconds)."""
     wheel, rail, setup = profile_pair(name)
     return contact_table(place_profiles(wheel, rail, setup), max_lateral=max_lateral, step=step)

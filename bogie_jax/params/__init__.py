@@ -30,6 +30,7 @@ from ._paths import (
     set_parameters as set_parameters,
 )
 from ._sets import (
+    MEASURED_WHEEL as MEASURED_WHEEL,
     PARAMETER_SETS as PARAMETER_SETS,
     crh380a as crh380a,
     manchester_benchmark as manchester_benchmark,

@@ -51,5 +51,6 @@ class BogieParams(eqx.Module):
     contact_geometry: str = eqx.field(default="cone", static=True)
     """The wheel/rail contact geometry: `"cone"` (a cone on a circular rail head from the
     `contact` fields, reference doc 1.2) or a named profile pair of `bogie_jax.contact`
-    (`PROFILE_PAIRS`, e.g. `"s1002-uic60"`), tabulated once and interpolated (a compile-time
-    choice: a name, not data)."""
+    (`PROFILE_PAIRS`, e.g. `"s1002-uic60"`) or a measured wheel on their rail
+    (`measured_wheel`), tabulated once and interpolated (a compile-time choice: a name, not
+    data)."""

@@ -25,6 +25,8 @@ from ._groups import (
 CONTACTS = ("cone", "s1002-uic60", "worn-uic60", "half-worn-uic60")
 """The contact geometries of `manchester_benchmark`: the cone, and the profile pairs of
 `bogie_jax.contact.PROFILE_PAIRS`."""
+MEASURED_WHEEL = "wheel:"
+"""Prefix of a measured wheel's contact name (`bogie_jax.contact.measured_wheel`)."""
 
 
 def manchester_benchmark(contact: str = "cone", wear: float | None = None) -> BogieParams:
@@ -34,13 +36,17 @@ def manchester_benchmark(contact: str = "cone", wear: float | None = None) -> Bo
     the Manchester Contact Benchmark's new S1002 wheel on UIC60 inclined 1:40, gauge 1435 mm,
     flange-back spacing 1360 mm (its contact table replaces the cone's geometry; the `contact`
     fields keep the material data and r0); `"worn-uic60"` a measured worn wheel on that rail;
-    `"half-worn-uic60"` a wheel whose profile lies halfway between the two.
+    `"half-worn-uic60"` a wheel whose profile lies halfway between the two; a measured wheel
+    on that rail, `bogie_jax.contact.measured_wheel(path, flange_back)`.
     `wear`: with `"s1002-uic60"`, a `WheelWear` level in [0, 1] blending the new and the worn
     wheel's tables (a differentiable nuisance parameter, `wear.level`), with its conicity
     factor `wear.conicity_factor` at 1; None: no wear parameter.
     """
-    if contact not in CONTACTS:
-        raise ValueError(f"unknown contact {contact!r}; choose one of {', '.join(CONTACTS)}")
+    if contact not in CONTACTS and not contact.startswith(MEASURED_WHEEL):
+        raise ValueError(
+            f"unknown contact {contact!r}; choose one of {', '.join(CONTACTS)}, or a measured "
+            "wheel (`bogie_jax.contact.measured_wheel`)"
+        )
     if wear is not None and contact != "s1002-uic60":
         raise ValueError(f"`wear` needs contact='s1002-uic60', got contact={contact!r}")
     return BogieParams(
