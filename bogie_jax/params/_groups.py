@@ -208,8 +208,9 @@ class WheelWear(_Group):
     far (`bogie_jax.contact.scale_conicity`; 1 leaves the blend as it is). The equivalent
     conicity, a linear functional of Delta r, follows: tan(gamma_e) = conicity_factor ((1 -
     level) tan(gamma_e, new) + level tan(gamma_e, worn)) at every amplitude. The level moves
-    along the one measured wear path; the factor reaches wheels off that path whose conicity
-    lies outside it (a wheel worn hollow, or less than the path says)."""
+    along the one measured wear path, the factor scales the conicity off it; a wheel whose
+    contact points jump elsewhere than any blend's needs its own profile
+    (`bogie_jax.contact.measured_wheel`; docs/contact.md)."""
 
     level: float = physical(
         unit="-", valid=(0.0, 1.0), bounds=(0.0, 1.0), doc="wheel wear: 0 new, 1 the worn profile"
