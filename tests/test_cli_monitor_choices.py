@@ -122,7 +122,7 @@ def test_monitor_contact_and_fit_model_reach_the_fit(tmp_path, monkeypatch):
         (["--wheel-profile", "no.prw"], "no.prw: no such profile file"),
         (
             ["--wheel-profile", str(S1002), "--flange-back", "900"],
-            "`ProfileSetup.flange_back` = 0.9 is outside [-0.5, 0.5]",
+            "`--flange-back` = 900 mm must lie in [-500, 500]",
         ),
         (
             ["--wheel-profile", str(shipped_profile("MBench_UIC60_v3.prr"))],

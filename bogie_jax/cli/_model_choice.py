@@ -81,6 +81,8 @@ def params_with_contact(vehicle: str, args, *, vehicle_option: str):
     if args.wheel_profile is not None:
         if contact != "cone" or wear is not None:
             raise UsageError("`--wheel-profile` takes the place of `--contact` and `--wear`")
+        if not -500 <= args.flange_back <= 500:
+            raise UsageError(f"`--flange-back` = {args.flange_back:g} mm must lie in [-500, 500]")
         try:
             contact = measured_wheel(args.wheel_profile, 1e-3 * args.flange_back)
         except ValueError as e:  # ProfileError: not a wheel profile, the flange back's range

@@ -25,7 +25,6 @@ from ._kalker import (
 )
 from ._named import (
     PROFILE_PAIRS as PROFILE_PAIRS,
-    is_measured as is_measured,
     measured_wheel as measured_wheel,
     named_contact_table as named_contact_table,
     profile_pair as profile_pair,

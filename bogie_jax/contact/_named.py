@@ -66,11 +66,6 @@ def _digest(path: pathlib.Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 
 
-def is_measured(name: str) -> bool:
-    """Whether `name` is a measured wheel's contact name (`measured_wheel`)."""
-    return name.startswith(MEASURED)
-
-
 def _measured_pair(name: str) -> tuple[Profile, Profile, ProfileSetup]:
     flange_back, digest, path = name[len(MEASURED) :].split(":", 2)
     if not pathlib.Path(path).is_file() or _digest(pathlib.Path(path)) != digest:
@@ -88,7 +83,7 @@ def shipped_profile(filename: str):
 def profile_pair(name: str) -> tuple[Profile, Profile, ProfileSetup]:
     """The wheel, the rail and the set-up of a named pair (`PROFILE_PAIRS`) or of a measured
     wheel (`measured_wheel`)."""
-    if is_measured(name):
+    if name.startswith(MEASURED):
         return _measured_pair(name)
     if name in _HALFWAY:
         return _halfway_pair(*_HALFWAY[name])
