@@ -56,19 +56,20 @@ def main() -> None:
         m = misfits(blend(x[0], *(x[1 : 1 + free])))
         return np.array(list(m.values()))
 
+    levels = []
     for free, what in (
         (0, "level"),
         (1, "level, Delta r factor"),
         (2, "level, Delta r and angle factors"),
     ):
         fit = least_squares(residual, [0.5, 1.0, 1.0][: 1 + free], args=(free,))
+        levels.append(fit.x[0])
         m = misfits(blend(fit.x[0], *fit.x[1:]))
         print(
             f"{what}: {np.round(fit.x, 3)}; relative misfit "
             + ", ".join(f"{k} {v:.3f}" for k, v in m.items())
         )
-    level = least_squares(residual, [0.5], args=(0,)).x[0]
-    base = blend(level)["dr"][inside]
+    base = blend(levels[0])["dr"][inside]  # the nearest blend, no factor
     ys = y[inside]
     for order in (1, 3, 5):
         basis = np.stack([ys**n for n in range(1, order + 1, 2)], axis=1)
