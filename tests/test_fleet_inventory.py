@@ -9,7 +9,8 @@ import sqlite3
 import pytest
 
 from bogie_jax.cli import main
-from bogie_jax.fleet import InventoryError, open_store, read_inventory
+from bogie_jax.contact import measured_wheel, shipped_profile
+from bogie_jax.fleet import InventoryError, JudgeTask, open_store, read_inventory
 
 
 GOOD = """
@@ -31,6 +32,7 @@ layout = "default"
   date = 2026-11-08
   files = ["data/a2-0.csv", "data/a2-1.csv"]
   tracks = ["tracks/line.csv"]
+  wheel_profile = "wheels/a2.prw"
 
   [[bogie.measurement]]
   date = "2026-11-01"
@@ -46,12 +48,19 @@ vehicle = "manchester"
 """
 
 
+S1002 = shipped_profile("MBench_S1002_v3.prw")
+
+
 def _files(folder):
     for name in ("data/a2-0.csv", "data/a2-1.csv", "data/a1-0.csv", "data/b1-0.npz",
                  "tracks/line.csv"):  # fmt: skip
         path = folder / name
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("")
+    wheels = folder / "wheels"
+    wheels.mkdir(exist_ok=True)
+    (wheels / "a2.prw").write_bytes(S1002.read_bytes())
+    (wheels / "rail.prr").write_bytes(shipped_profile("MBench_UIC60_v3.prr").read_bytes())
 
 
 def _inventory(tmp_path, text=GOOD, files=True):
@@ -70,6 +79,11 @@ def test_an_inventory_reads_into_bogies_and_dated_visits(tmp_path):
     assert [v.date for v in a.visits] == ["2026-11-01", "2026-11-08"]  # sorted by date
     assert a.visits[1].files == (str(tmp_path / "data/a2-0.csv"), str(tmp_path / "data/a2-1.csv"))
     assert a.visits[1].tracks == (str(tmp_path / "tracks/line.csv"),)
+    # the wheels measured at the visit: their contact reaches the parameters each task fits
+    s1002 = measured_wheel(tmp_path / "wheels/a2.prw", -0.070)
+    assert [v.contact for v in a.visits] == ["cone", s1002]
+    tasks = [JudgeTask.of(a, v, inv.settings) for v in a.visits]
+    assert [t.params().contact_geometry for t in tasks] == ["cone", s1002]
     assert inv.settings.track_error_mm == 0.3
     assert inv.settings.candidates == ("yaw_dampers.left.c", "secondary.left.cy")
     assert len(inv.visits) == 3
@@ -94,6 +108,19 @@ BAD = [
     ("a misspelt key", GOOD.replace("files = [\"data/b1-0.npz\"]", "file = [\"data/b1-0.npz\"]"),
      "unknown key(s) file"),
     ("another format", GOOD.replace("fleet/1", "fleet/9"), "`format`"),
+    ("a rail as the wheel", GOOD.replace("wheels/a2.prw", "wheels/rail.prr"),
+     "`wheel_profile`: "),
+    ("a missing wheel profile", GOOD.replace("wheels/a2.prw", "wheels/no.prw"),
+     "`wheel_profile` file 'wheels/no.prw' does not exist"),
+    ("a wheel profile on another vehicle",
+     GOOD.replace('id = "401-A"', 'id = "401-A"\nvehicle = "crh380a"'),
+     "`wheel_profile` needs vehicle = 'manchester'"),
+    ("a flange back out of range",
+     GOOD.replace('wheel_profile = "wheels/a2.prw"',
+                  'wheel_profile = "wheels/a2.prw"\n  flange_back_mm = 700'),
+     "`flange_back_mm` = 700 must be a number in [-500, 500)"),
+    ("a flange back alone", GOOD.replace('wheel_profile = "wheels/a2.prw"', "flange_back_mm = 0"),
+     "`flange_back_mm` goes with `wheel_profile`"),
     ("no bogie", GOOD.split("[[bogie]]")[0], "no `[[bogie]]`"),
     ("not TOML", "format = ", "not a TOML file"),
 ]  # fmt: skip

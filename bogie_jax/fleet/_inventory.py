@@ -8,8 +8,8 @@ a convention for grouping rows.
 
 `read_inventory` checks everything that can be checked without a fit (missing files, repeated
 ids or dates, unparsable dates, unknown vehicles, layouts and element names, a track count
-that fits neither one-for-all nor one-per-file) and raises `InventoryError` naming the file,
-the bogie and the value.
+that fits neither one-for-all nor one-per-file, a wheel profile that is not one) and raises
+`InventoryError` naming the file, the bogie and the value.
 """
 
 import dataclasses
@@ -19,12 +19,14 @@ import re
 import tomllib
 from pathlib import Path
 
+from ..contact import measured_wheel
 from ..params import PARAMETER_SETS, resolve_parameter
 from ..sensitivity import LAYOUTS
 from ._values import BogieEntry, Inventory, MonitorSettings, Visit
 
 
 INVENTORY_FORMAT = "bogie_jax.fleet/1"
+WHEEL_PROFILE_VEHICLE = "manchester"  # the parameter set that carries the profile contacts
 _ISO_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 
 
@@ -84,11 +86,12 @@ def _check_keys(what: str, table: dict, valid) -> None:
 def _settings(path, table, vehicle) -> MonitorSettings:
     known = sorted(f.name for f in dataclasses.fields(MonitorSettings))
     _check_keys(f"{path}: unknown key(s) in [monitor]:", table, known)
-    alpha = _number(path, table, "false_alarm_rate", 0.05, 0.0, 0.5, "in (0, 0.5)", open_lo=True)
-    track = _number(path, table, "track_error_mm", 0.0, 0.0, 10.0, "in [0, 10] mm")
+    where = f"{path}: [monitor]"
+    alpha = _number(where, table, "false_alarm_rate", 0.05, 0.0, 0.5, "in (0, 0.5)", open_lo=True)
+    track = _number(where, table, "track_error_mm", 0.0, 0.0, 10.0, "in [0, 10] mm")
     band = table.get("band")
     if band is not None:
-        band = _number(path, table, "band", None, 0.0, 1.0, "in (0, 1)", open_lo=True)
+        band = _number(where, table, "band", None, 0.0, 1.0, "in (0, 1)", open_lo=True)
     candidates = table.get("candidates", [])
     if not isinstance(candidates, list) or not all(isinstance(c, str) for c in candidates):
         raise InventoryError(f"{path}: [monitor] `candidates` must be a list of element names")
@@ -102,12 +105,12 @@ def _settings(path, table, vehicle) -> MonitorSettings:
     return MonitorSettings(alpha, track, band, tuple(candidates))
 
 
-def _number(path, table, key, default, lo, hi, valid, *, open_lo=False) -> float:
+def _number(where, table, key, default, lo, hi, valid, *, open_lo=False) -> float:
     value = table.get(key, default)
     ok = isinstance(value, (int, float)) and not isinstance(value, bool)
     ok = ok and math.isfinite(value) and (lo < value if open_lo else lo <= value) and value < hi
     if not ok:
-        raise InventoryError(f"{path}: [monitor] `{key}` = {value!r} must be a number {valid}")
+        raise InventoryError(f"{where}: `{key}` = {value!r} must be a number {valid}")
     return float(value)
 
 
@@ -131,17 +134,18 @@ def _bogie(path, k, row, defaults) -> BogieEntry:
     items = row.get("measurement")
     if not isinstance(items, list) or not items:
         raise InventoryError(f"{where}: no `[[bogie.measurement]]`: give at least one")
-    visits = [_visit(path, where, j, item) for j, item in enumerate(items)]
+    visits = [_visit(path, where, j, item, vehicle) for j, item in enumerate(items)]
     _check_unique(path, [v.date for v in visits], f"bogie {bogie_id!r}: measurement date")
     visits.sort(key=lambda v: v.date)
     return BogieEntry(bogie_id, vehicle, layout, tuple(visits))
 
 
-def _visit(path, where, j, item) -> Visit:
+def _visit(path, where, j, item, vehicle) -> Visit:
     where = f"{where}, measurement {j + 1}"
     if not isinstance(item, dict):
         raise InventoryError(f"{where}: must be a table [[bogie.measurement]]")
-    _check_keys(f"{where}: unknown key(s)", item, ("date", "files", "tracks"))
+    keys = ("date", "files", "tracks", "wheel_profile", "flange_back_mm")
+    _check_keys(f"{where}: unknown key(s)", item, keys)
     date = _date(where, item.get("date"))
     files = _paths(path, where, item.get("files"), "files", required=True)
     tracks = _paths(path, where, item.get("tracks", []), "tracks", required=False)
@@ -150,7 +154,29 @@ def _visit(path, where, j, item) -> Visit:
             f"{where}: {len(tracks)} `tracks` for {len(files)} `files`: give none (each file's "
             "track reference), one for all, or one per file"
         )
-    return Visit(date, files, tracks)
+    return Visit(date, files, tracks, _contact(path, where, item, vehicle))
+
+
+def _contact(path, where, item, vehicle) -> str:
+    """The visit's contact: `"cone"`, or the contact name of its `wheel_profile` file with its
+    flange back at `flange_back_mm` [mm] in the file's frame (default -70, as the S1002 file)."""
+    if "wheel_profile" not in item:
+        if "flange_back_mm" in item:
+            raise InventoryError(f"{where}: `flange_back_mm` goes with `wheel_profile`")
+        return "cone"
+    if vehicle != WHEEL_PROFILE_VEHICLE:
+        raise InventoryError(
+            f"{where}: `wheel_profile` needs vehicle = {WHEEL_PROFILE_VEHICLE!r} (the set whose "
+            f"wheels the rail profiles fit), got {vehicle!r}"
+        )
+    if not isinstance(item["wheel_profile"], str):
+        raise InventoryError(f"{where}: `wheel_profile` must be a file name")
+    (wheel,) = _paths(path, where, [item["wheel_profile"]], "wheel_profile", required=True)
+    flange_back = _number(where, item, "flange_back_mm", -70.0, -500.0, 500.0, "in [-500, 500)")
+    try:
+        return measured_wheel(wheel, 1e-3 * flange_back)
+    except ValueError as e:  # ProfileError: not a wheel profile
+        raise InventoryError(f"{where}: `wheel_profile`: {e}") from None
 
 
 def _date(where, value) -> str:

@@ -4,7 +4,6 @@ object `bogie-jax monitor --data` writes and `fleet import` reads."""
 
 from ..io import load_measurement, load_run_tracks, verdicts_record
 from ..monitor import MonitorOptions, monitor
-from ..params import PARAMETER_SETS
 from ..sensitivity import sensor_layouts
 from ._task import JudgeTask
 
@@ -21,8 +20,8 @@ def _monitor_options(s) -> MonitorOptions:
 
 def judge_visit(task: JudgeTask) -> dict:
     """The `verdicts.json` record of `task`'s bogie and date (with `bogie_id`, `vehicle`,
-    `layout` and `data`). **Raises:** what reading the files and `monitor` raise."""
-    params = PARAMETER_SETS[task.vehicle]()
+    `layout`, `data` and `contact`). **Raises:** what reading the files and `monitor` raise."""
+    params = task.params()
     sensors = sensor_layouts(params)[task.layout]
     measurements = [load_measurement(f, sensors=sensors) for f in task.files]
     tracks = load_run_tracks(task.files, measurements, task.tracks)
@@ -30,5 +29,5 @@ def judge_visit(task: JudgeTask) -> dict:
     source = f"bogie-jax fleet run: {task.bogie_id} on {task.date}"
     return verdicts_record(
         result, date=task.date, source=source, bogie_id=task.bogie_id, vehicle=task.vehicle,
-        layout=task.layout, data=list(task.files),
+        layout=task.layout, data=list(task.files), contact=task.contact,
     )  # fmt: skip

@@ -2,6 +2,7 @@
 
 import dataclasses
 
+from ..params import PARAMETER_SETS
 from ._values import BogieEntry, MonitorSettings, Visit
 
 
@@ -9,7 +10,8 @@ from ._values import BogieEntry, MonitorSettings, Visit
 class JudgeTask:
     """Judge one bogie on one date: `bogie_id`, `date` (`YYYY-MM-DD`), `vehicle` and `layout`
     names, measurement `files` and track records `tracks` (absolute paths), the fleet's
-    `settings`, and the compilation cache directory the worker uses (`None`: none)."""
+    `settings`, the compilation cache directory the worker uses (`None`: none) and the
+    wheel-rail `contact` fitted (`Visit.contact`)."""
 
     bogie_id: str
     date: str
@@ -19,15 +21,21 @@ class JudgeTask:
     tracks: tuple[str, ...]
     settings: MonitorSettings
     cache_dir: str | None = None
+    contact: str = "cone"
 
     @classmethod
     def of(cls, bogie: BogieEntry, visit: Visit, settings, cache_dir=None) -> "JudgeTask":
         return cls(bogie.id, visit.date, bogie.vehicle, bogie.layout, visit.files, visit.tracks,
-                   settings, cache_dir)  # fmt: skip
+                   settings, cache_dir, visit.contact)  # fmt: skip
 
     @property
     def key(self) -> tuple[str, str]:
         return (self.bogie_id, self.date)
+
+    def params(self):
+        """The vehicle's parameter set with the visit's wheel-rail contact."""
+        make = PARAMETER_SETS[self.vehicle]
+        return make() if self.contact == "cone" else make(contact=self.contact)
 
 
 @dataclasses.dataclass(frozen=True)

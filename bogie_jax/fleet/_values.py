@@ -21,11 +21,14 @@ class MonitorSettings:
 class Visit:
     """One dated measurement of one bogie: its `files` (`bogie_jax.io` CSV or NPZ, one per
     run, judged jointly) and `tracks` (track record CSVs: none, one for all runs, or one per
-    file), as absolute paths; `date` as `YYYY-MM-DD`."""
+    file), as absolute paths; `date` as `YYYY-MM-DD`; `contact` the wheel-rail contact fitted:
+    `"cone"` (the vehicle's default) or the wheels' profile measured at the visit
+    (`bogie_jax.contact.measured_wheel`'s contact name)."""
 
     date: str
     files: tuple[str, ...]
     tracks: tuple[str, ...] = ()
+    contact: str = "cone"
 
 
 @dataclasses.dataclass(frozen=True)
