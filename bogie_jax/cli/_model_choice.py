@@ -12,13 +12,12 @@ the linear model leaves the data not explained.
 
 from ..contact import PROFILE_PAIRS, measured_wheel
 from ..monitor import nonlinear_options
-from ..params import ModelOptions
+from ..params import PROFILE_SET, ModelOptions
 from ._common import UsageError
 from ._names import lookup
 
 
 CONTACTS = ("cone", *PROFILE_PAIRS)
-PROFILE_SET = "manchester"  # the parameter set that carries the profile pairs
 WEAR_CONTACT = "s1002-uic60"  # the pair whose table `--wear` blends towards the worn wheel
 FIT_MODELS = {"linear": ModelOptions, "nonlinear": nonlinear_options}
 

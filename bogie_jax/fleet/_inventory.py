@@ -20,13 +20,12 @@ import tomllib
 from pathlib import Path
 
 from ..contact import measured_wheel
-from ..params import PARAMETER_SETS, resolve_parameter
+from ..params import PARAMETER_SETS, PROFILE_SET, resolve_parameter
 from ..sensitivity import LAYOUTS
 from ._values import BogieEntry, Inventory, MonitorSettings, Visit
 
 
 INVENTORY_FORMAT = "bogie_jax.fleet/1"
-WHEEL_PROFILE_VEHICLE = "manchester"  # the parameter set that carries the profile contacts
 _ISO_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 
 
@@ -164,9 +163,9 @@ def _contact(path, where, item, vehicle) -> str:
         if "flange_back_mm" in item:
             raise InventoryError(f"{where}: `flange_back_mm` goes with `wheel_profile`")
         return "cone"
-    if vehicle != WHEEL_PROFILE_VEHICLE:
+    if vehicle != PROFILE_SET:
         raise InventoryError(
-            f"{where}: `wheel_profile` needs vehicle = {WHEEL_PROFILE_VEHICLE!r} (the set whose "
+            f"{where}: `wheel_profile` needs vehicle = {PROFILE_SET!r} (the set whose "
             f"wheels the rail profiles fit), got {vehicle!r}"
         )
     if not isinstance(item["wheel_profile"], str):

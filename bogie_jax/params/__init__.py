@@ -32,6 +32,7 @@ from ._paths import (
 from ._sets import (
     MEASURED_WHEEL as MEASURED_WHEEL,
     PARAMETER_SETS as PARAMETER_SETS,
+    PROFILE_SET as PROFILE_SET,
     crh380a as crh380a,
     manchester_benchmark as manchester_benchmark,
 )

@@ -111,3 +111,5 @@ def _contact(*, wheel_radius: float, cone_slope: float) -> WheelRailContact:
 
 
 PARAMETER_SETS = {"manchester": manchester_benchmark, "crh380a": crh380a}
+PROFILE_SET = "manchester"
+"""The parameter set whose wheels the profile contacts fit (`manchester_benchmark(contact=...)`)."""
