@@ -9,6 +9,7 @@ each test.
 """
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -250,6 +251,22 @@ def test_bias_projection_equals_explicit_bias_parameters():
     assert np.all(pr[~layout.mask] == 0) and np.all(pj[~layout.mask] == 0)
     assert layout.n_bias == layout.n_runs * layout.n_channels == 6
     assert layout.n_present == int(layout.mask.sum())
+
+
+def test_a_non_finite_run_channel_stays_non_finite_without_a_warning():
+    """A rejected step's infinite residuals: the run-channels holding them come out non-finite
+    (never finite, which would read as a fit), the others centred as before, and no numpy
+    warning reaches the user."""
+    layout = _layout(np.random.default_rng(6), missing=0.0)
+    r = np.random.default_rng(7).standard_normal(layout.mask.size)
+    bad = r.copy()
+    bad[layout.slices[0].start] = np.inf  # run 0, channel 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = layout.centre(bad)
+    first = layout.slices[0]
+    assert not np.any(np.isfinite(out[first][0 :: layout.n_channels]))
+    np.testing.assert_array_equal(out[layout.slices[1]], layout.centre(r)[layout.slices[1]])
 
 
 def test_channel_variances_are_unbiased_with_bias_removed():

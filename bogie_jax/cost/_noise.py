@@ -96,15 +96,17 @@ class RunChannels:
 
     def centre(self, x) -> np.ndarray:
         """x (m,) or (m, n) with every run-channel's mean over its present samples removed
-        (the bias projection P); missing rows stay exactly zero."""
+        (the bias projection P); missing rows stay exactly zero. A run-channel holding a
+        non-finite value (a rejected step's infinite residuals) comes out non-finite, silently."""
         x = np.array(x, dtype=float, copy=True)
-        for k, sl in enumerate(self.slices):
-            block = self._block(x, k)
-            mask = self._block(self.mask, k)
-            mask = mask.reshape(mask.shape + (1,) * (block.ndim - 2))
-            count = np.maximum(mask.sum(axis=0), 1)
-            mean = np.where(mask, block, 0.0).sum(axis=0) / count
-            x[sl] = (block - np.where(mask, mean, 0.0)).reshape(x[sl].shape)
+        with np.errstate(invalid="ignore"):  # inf - inf: the non-finite stays non-finite
+            for k, sl in enumerate(self.slices):
+                block = self._block(x, k)
+                mask = self._block(self.mask, k)
+                mask = mask.reshape(mask.shape + (1,) * (block.ndim - 2))
+                count = np.maximum(mask.sum(axis=0), 1)
+                mean = np.where(mask, block, 0.0).sum(axis=0) / count
+                x[sl] = (block - np.where(mask, mean, 0.0)).reshape(x[sl].shape)
         return x
 
     def expand(self, values) -> np.ndarray:
