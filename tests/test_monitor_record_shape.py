@@ -147,7 +147,9 @@ def test_the_mixed_term_is_the_term_of_the_mixed_error():
         return y - a @ phi - g @ e.reshape(-1), -a
 
     residuals_at = lambda tracks, phi: evaluate_at(tracks, phi)[0]
-    fit = types.SimpleNamespace(evaluate_on=evaluate_at, residuals_on=residuals_at)
+    fit = types.SimpleNamespace(
+        evaluate_on=evaluate_at, residuals_on=residuals_at, fit_residuals_on=residuals_at
+    )
 
     def term(error, seed):
         return track_error_effect(fit, [track], np.zeros(n), error, Sampling(3000, seed=seed))

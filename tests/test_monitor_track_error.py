@@ -6,6 +6,7 @@ known attenuation of a regression on a noisy input. `monitor` with the term on r
 tests/test_monitor.py (through the demo, which shares that module's compiled programs).
 """
 
+import collections
 import dataclasses
 import threading
 import types
@@ -28,9 +29,12 @@ def _record(rng, n):
 
 def _fit(evaluate_at, residuals_at=None):
     """The `fit` of `track_error_effect` for `evaluate_at(tracks, phi) -> (r, J)`, its residuals
-    alone from `residuals_at(tracks, phi)` (default: `evaluate_at`'s r)."""
-    residuals_on = residuals_at or (lambda tracks, phi: evaluate_at(tracks, phi)[0])
-    return types.SimpleNamespace(evaluate_on=evaluate_at, residuals_on=residuals_on)
+    alone from `residuals_at(tracks, phi)` (default: `evaluate_at`'s r; at the fit's tolerance
+    always `evaluate_at`'s)."""
+    own = lambda tracks, phi: evaluate_at(tracks, phi)[0]
+    return types.SimpleNamespace(
+        evaluate_on=evaluate_at, residuals_on=residuals_at or own, fit_residuals_on=own
+    )
 
 
 def test_record_error_has_the_level_and_the_spectrum_of_the_model():
@@ -177,8 +181,10 @@ def test_each_pair_is_refitted_to_the_perturbed_records_minimum():
     realisations, and the bias is the mean of phi_e - phi_0 over both signs of every pair. One
     Gauss-Newton step gives exp(phi_e - phi_0) - 1 instead of phi_e - phi_0 (the step is linear
     in the shift, the refit is not): its mean misses the second-order term that the bias is
-    made of; the iterated refit reaches the oracle. The pairs' spread is the bias's Monte Carlo
-    variance."""
+    made of. The later steps are chord steps (the first step's Jacobian): at this error
+    (variance 30 % of the signal's) the second ends within 6 % of the oracle where the first
+    misses by 16 %, and iterated they reach it (in one coordinate the chord's fixed point is the
+    refit's minimum). The pairs' spread is the bias's Monte Carlo variance."""
     rng = np.random.default_rng(7)
     n = 61
     u = np.zeros((n, 3))
@@ -195,22 +201,29 @@ def test_each_pair_is_refitted_to_the_perturbed_records_minimum():
         return y - np.exp(phi[0]) * x, -np.exp(phi[0]) * x[:, None]
 
     tracks = [TrackIrregularity(0.0, 0.5, record)]
+    calls = collections.Counter()
+    counted = lambda name, f: lambda *a: calls.update([name]) or f(*a)
+    fit = _fit(evaluate_at)
+    fit.evaluate_on = counted("jacobian", fit.evaluate_on)
+    fit.fit_residuals_on = counted("residuals", fit.fit_residuals_on)
     effect = track_error_effect(
-        _fit(evaluate_at), tracks, phi0, RecordError(rms, SEMI),
-        Sampling(40, pairs=20, refit_steps=6, seed=11),
-    )  # fmt: skip
+        fit, tracks, phi0, RecordError(rms, SEMI), Sampling(40, pairs=20, refit_steps=40, seed=11)
+    )
+    # one Jacobian at the start and one per refit, the residuals alone at each later step
+    assert calls == {"jacobian": 1 + 2 * 20, "residuals": 2 * 20 * 39}
     draws = np.random.default_rng(11)
     errors = [record_error(record, rms, SEMI, draws)[:, 0] for _ in range(40)]
     refits = np.array(
         [[np.log(x_e @ y / (x_e @ x_e)) - phi0[0] for x_e in (x + e, x - e)] for e in errors[:20]]
     )
     oracle = np.mean(refits)
-    assert effect.refit_draws == 20 and effect.bias_by_step.shape == (6, 1)
+    assert effect.refit_draws == 20 and effect.bias_by_step.shape == (40, 1)
     assert effect.bias[0] == pytest.approx(oracle, abs=1e-10)
+    assert abs(effect.bias_by_step[1, 0] - oracle) < 0.06 * abs(oracle)  # two steps
     assert effect.bias_variance[0] == pytest.approx(np.var(refits.mean(axis=1), ddof=1) / 20)
     one_step = effect.bias_by_step[0, 0]
     assert one_step == pytest.approx(np.mean(np.expm1(refits)), abs=1e-10)
-    assert abs(one_step - oracle) > 0.05 * abs(oracle)  # what one step would have missed
+    assert abs(one_step - oracle) > 0.15 * abs(oracle)  # what one step would have missed
 
 
 def test_a_failed_draw_is_left_out():

@@ -332,6 +332,12 @@ class FitSpace:
         r = program.residuals(self.matrix() @ v, program.derivative_objective())
         return self.project(r) * self.rows
 
+    def fit_residuals_on(self, records, v) -> np.ndarray:
+        """Weighted r at v with other track records, from solves at the settings' tolerance
+        (the fit's; no bounds, no memo)."""
+        r = self.program.on_records(records).residuals(self.matrix() @ v)
+        return self.project(r) * self.rows
+
     def evaluate_on(self, records, v) -> tuple[np.ndarray, np.ndarray]:
         """Weighted r and dr/dv at v with other track records (no bounds, no memo)."""
         b = self.matrix()
