@@ -36,7 +36,7 @@ biased by an amount of second order in the error, which the first-order shift ab
 does not show. It is removed by simulation-extrapolation (SIMEX: Cook and Stefanski, J. Am.
 Stat. Assoc. 89 (1994) 1314-1328; Carroll et al., *Measurement Error in Nonlinear Models*, 2nd
 ed. 2006, ch. 5) with one added level: the record plus a second error of the same variance is
-refitted by `refit_steps` Gauss-Newton steps from the fit's estimate, and the mean of the
+refitted by `refit_steps` steps (below) from the fit's estimate, and the mean of the
 refits' shifts is the bias at the record's own error level (bias linear in the error variance:
 2 sigma^2 - sigma^2 = sigma^2), subtracted from the estimates. The refits come in antithetic
 pairs, record + e and record - e (Hammersley and Morton, Proc. Camb. Phil. Soc. 52 (1956)
@@ -150,7 +150,7 @@ def band_error(
     return scaled_error(error * powered, rms, semi_distance)
 
 
-REFIT_STEPS = 2  # Gauss-Newton steps of each refit (module docstring)
+REFIT_STEPS = 2  # steps of each refit: Gauss-Newton, then chord (module docstring)
 BIAS_PAIRS = 4  # antithetic pairs of refits for the bias (module docstring)
 
 
@@ -203,7 +203,7 @@ def _finite(*arrays) -> bool:
 
 
 def _refit(fit, records, phi, steps: int):
-    """r (m,) at `phi` on `records`, and the path (steps, n) of `steps` Gauss-Newton steps from
+    """r (m,) at `phi` on `records`, and the path (steps, n) of `steps` steps from
     `phi` on them: the first with the Jacobian at `phi`, the later ones chord steps with that
     Jacobian and the residuals alone (module docstring); `None` where an evaluation is not
     finite (a failed solve)."""
@@ -248,9 +248,10 @@ def _bias(means, steps: int, n: int):
 class Sampling:
     """How the records' error is sampled (module docstring): `draws` realisations from
     `numpy.random.default_rng(seed)` for the covariance and the misfit; the first `pairs` of
-    them (>= 1), with and without their sign, refitted by `refit_steps` (>= 1) Gauss-Newton
-    steps for the bias; `workers` threads run the derivatives and the refits side by side
-    (`None`: one per core; the compiled programs release the interpreter while they run)."""
+    them (>= 1), with and without their sign, refitted by `refit_steps` (>= 1) steps for the
+    bias (a Gauss-Newton step, then chord steps); `workers` threads run the derivatives and the
+    refits side by side (`None`: one per core; the compiled programs release the interpreter
+    while they run)."""
 
     draws: int
     pairs: int = BIAS_PAIRS
