@@ -7,8 +7,9 @@ with respect to x = [ln p of the candidates and nuisance parameters, run correct
 a thread of its own: `column_blocks`): one compiled program for the Fisher information, every
 fit and horizon stage, the profile tests and the track record's refits, whatever records, runs
 or horizon are used; and a program of the residuals alone (`residuals`: the tight solves of a
-looser Jacobian, below, and the records' draws of `_track_error.py`, on other records). Both go
-through the program store where the process keeps one (the command line).
+looser Jacobian, below, and the records' draws and refits' chord steps of `_track_error.py`,
+on other records). Both go through the program store where the process keeps one (the command
+line).
 
 **Two tolerances** (`MonitorOptions.jacobian_rtol`). The residuals set the estimate, and its
 cost differences every profile test; the Jacobian sets the Gauss-Newton step and the

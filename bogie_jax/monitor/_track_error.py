@@ -55,7 +55,7 @@ the difference is of first order in e times those residuals, and its first order
 an antithetic pair. On two 8 s runs (detection case 1) the chord's biases lay within 10 % of
 two Gauss-Newton steps' (0.0001-0.0024 in ln p), the estimates within 0.074 of their standard
 errors (median 0.026), the verdicts the same, a third chord step changing none of it (the
-chord's end, not its convergence); the term took 25 s against 36-42 s. The pairs' spread gives
+chord's end, not its convergence; docs/history.md has the timings). The pairs' spread gives
 the Monte Carlo variance of the bias, added to a corrected estimate's. `monitor` removes
 it only from well-determined element coordinates (`_judgement.estimate_of`).
 
