@@ -299,3 +299,5 @@ def test_the_record_errors_shape_is_told_in_the_summary_json_and_report(white, l
     assert (drift in text) is (long > 0)
     assert ("shaped like the track" in text) is True
     assert ("not taken as explained by it" in result.table()) is (white > 0)
+    assert ("records calibrated for it" in result.table()) is (white > 0)
+    assert ("records calibrated for it" in text) is (white > 0)

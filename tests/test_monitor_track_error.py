@@ -309,3 +309,64 @@ def test_a_fit_that_misses_the_data_is_flagged_in_table_json_and_report(ratio, e
         assert record["fit"]["explains_data"] is not flagged
         text = write_report(tmp_path / "report.md", record).read_text()
         assert ("WARNING: the fit leaves" in text) is flagged
+
+
+def test_calibration_removes_the_attenuation_of_a_short_wave_response():
+    """A response to the track's short waves (y = a times the record's second difference, as
+    an acceleration weights the short waves) fitted on a record with an error white over the
+    recording band, as large as the track at the shortest waves: on the raw record the
+    least-squares a is attenuated by far more than SIMEX's expansion holds; on the record
+    calibrated for the error (the Wiener filter, `bogie_jax.track.calibrated_record`:
+    regression calibration) it is not. The records' bias of the calibrated estimator, its
+    refits' records calibrated for the doubled variance (`refit_records`), is as small as what
+    is left. 40 records, 4 antithetic pairs each."""
+    from bogie_jax.monitor import RECORD_BAND
+    from bogie_jax.track import calibrated_record
+
+    rng = np.random.default_rng(13)
+    n, ds, a_true = 2048, 0.25, 2.0
+    k = np.fft.rfftfreq(n, ds)
+    red = np.where(k > 1 / 200.0, 1.0 / np.maximum(k, 1e-9) ** 1.5, 0.0)
+    rms = 3e-4
+    error = RecordError(rms, SEMI, band=RECORD_BAND)
+    second = lambda x: x[2:] - 2.0 * x[1:-1] + x[:-2]
+    raw, calibrated, corrected, biases = [], [], [], []
+    for _ in range(40):
+        u = np.zeros((n, 3))
+        c = (rng.standard_normal(k.size) + 1j * rng.standard_normal(k.size)) * red
+        u[:, 0] = np.fft.irfft(c, n=n)
+        u[:, 0] *= 2e-3 / np.sqrt(np.mean(u[:, 0] ** 2))
+        y = a_true * second(u[:, 0])
+        base = TrackIrregularity(0.0, ds, u)
+        record = TrackIrregularity(0.0, ds, u + error.draw(base, rng))
+        cal = calibrated_record(record, rms, RECORD_BAND, SEMI)
+        slope = lambda t: (
+            float(second(np.asarray(t.values)[:, 0]) @ y)
+            / float(second(np.asarray(t.values)[:, 0]) @ second(np.asarray(t.values)[:, 0]))
+        )
+        raw.append(slope(record))
+        a_hat = slope(cal)
+        calibrated.append(a_hat)
+
+        def evaluate_at(tracks, phi):
+            x = second(np.asarray(tracks[0].values)[:, 0])
+            return y - phi[0] * x, -x[:, None]
+
+        twice = lambda records: [
+            calibrated_record(t, rms * np.sqrt(2.0), RECORD_BAND, SEMI) for t in records
+        ]
+        effect = track_error_effect(
+            _fit(evaluate_at), [record], np.array([a_hat]), error,
+            Sampling(8, seed=int(rng.integers(2**31))), start=evaluate_at([cal], np.array([a_hat])),
+            refit_records=twice,
+        )  # fmt: skip
+        biases.append(float(effect.bias[0]) / a_true)
+        corrected.append(a_hat - float(effect.bias[0]))
+    raw_bias, cal_bias = np.mean(raw) / a_true - 1.0, np.mean(calibrated) / a_true - 1.0
+    corrected_bias = np.mean(corrected) / a_true - 1.0
+    print(f"relative bias: raw {raw_bias:+.3f}, calibrated {cal_bias:+.3f}, "
+          f"less the calibrated estimator's SIMEX {corrected_bias:+.3f}")  # fmt: skip
+    # measured -0.517, -0.042 and -0.011
+    assert raw_bias < -0.3
+    assert abs(cal_bias) < 0.06 and abs(corrected_bias) < 0.03
+    assert abs(corrected_bias) < 0.5 * abs(cal_bias) and abs(np.mean(biases)) < 0.06

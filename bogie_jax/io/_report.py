@@ -250,7 +250,8 @@ def _record_error(fit) -> str:
     if white > 0:
         shape = (
             f", {100 * white:.0f} % of its variance white over the recording band (the misfit "
-            "calls for it), the rest shaped like the track"
+            "calls for it; the fit repeated on records calibrated for it), the rest shaped like "
+            "the track"
         )
     elif long > 0:
         shape = (

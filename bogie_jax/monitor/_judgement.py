@@ -36,11 +36,14 @@ SIMEX_MAX_SPREAD = 0.1  # [-], ln p: the records' bias is removed where it and t
 
 
 def track_record_term(
-    space: FitSpace, fit: HostFit, say, band=None, stationary: bool = False
+    space: FitSpace, fit: HostFit, say, band=None, stationary: bool = False, raw=None,
+    prepare=None,
 ) -> TrackErrorEffect | None:  # fmt: skip
     """The track records' error in the fitted coordinates at the estimate (`_track_error.py`),
     shaped like the track or, with a wavelength `band` [m], white over it (`RecordError`, with
-    `stationary`); `None` without a `track_error` or a fit."""
+    `stationary`); the errors drawn on the problem's records or on `raw` ones, the bias's
+    perturbed records made ready by `prepare` (`track_error_effect`'s `refit_records`); `None`
+    without a `track_error` or a fit."""
     p = space.program.problem
     o = p.options
     if not o.track_error > 0 or fit.status == "failed":
@@ -49,9 +52,10 @@ def track_record_term(
     semi_distance = float(np.asarray(p.params.contact.contact_semi_distance))
     loose = space.with_program(space.program.with_loose_jacobian())  # `_program.py`
     return track_error_effect(
-        loose, p.tracks, fit.phi, RecordError(o.track_error, semi_distance, band, stationary),
-        Sampling(o.track_error_draws), references=[m.track for m in p.measurements],
-        start=(fit.r, fit.jac),
+        loose, p.tracks if raw is None else raw, fit.phi,
+        RecordError(o.track_error, semi_distance, band, stationary), Sampling(o.track_error_draws),
+        references=[m.track for m in p.measurements], start=(fit.r, fit.jac),
+        refit_records=prepare,
     )  # fmt: skip
 
 

@@ -92,11 +92,11 @@ def monitor(
     space, fits, reasons = fit_runs(space, reasons, say)
     done = reweight(space, fits[-1], say)
     timings["fit_s"] = time.perf_counter() - t0
-    weights = member_weights(done.space, coords, done.fit)
     t0 = time.perf_counter()
-    effect = record_term(done.space, done.fit, say)
+    done, effect = record_term(done, say)
     if effect is not None:
         timings["track_error_s"] = time.perf_counter() - t0
+    weights = member_weights(done.space, coords, done.fit)
     t0 = time.perf_counter()
     estimate = estimate_of(done.space, done.fit, effect, len(coords) + len(problem.nuisance))
     stats = statistics(done.space, coords, estimate)

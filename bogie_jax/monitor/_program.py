@@ -175,6 +175,13 @@ class JointProgram:
         program = JointProgram.build(self.problem, records, self.active)
         return dataclasses.replace(program, jacobian_rtol=self.jacobian_rtol)
 
+    def with_tracks(self, records) -> "JointProgram":
+        """The same runs with `records` as the problem's track records from now on (the same
+        compiled program, whole runs): what every later use of the problem's tracks sees."""
+        problem = dataclasses.replace(self.problem, tracks=tuple(records))
+        program = JointProgram.build(problem, None, self.active)
+        return dataclasses.replace(program, jacobian_rtol=self.jacobian_rtol)
+
     def with_loose_jacobian(self) -> "JointProgram":
         """The program whose Jacobian comes from solves at `MonitorOptions.jacobian_rtol`
         (module docstring)."""

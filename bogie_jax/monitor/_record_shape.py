@@ -74,8 +74,10 @@ otherwise is still to come.
 
 import numpy as np
 
+from ._fit import Reweighted
 from ._goodness import fit_goodness
 from ._judgement import track_record_term
+from ._record_calibration import calibrated_fit, calibrated_records
 from ._track_error import TrackErrorEffect
 
 
@@ -136,30 +138,56 @@ def mixed_effect(
     )
 
 
-def record_term(space, fit, say) -> TrackErrorEffect | None:
+def record_term(done: Reweighted, say) -> tuple[Reweighted, TrackErrorEffect | None]:
     """`monitor`'s step 6: the records' term (`_judgement.track_record_term`) with its shape
-    chosen by the misfit (module docstring): the track-shaped term where it is `None`, has no
-    draws or the fit explains the data with it; else mixed with the term of an error white over
-    `RECORD_BAND` for the covariance and the bias, its white share in `white_share`, with the
-    track-shaped term's misfit (so the data stay not explained) and the mixture's in
-    `mixed_misfits` (for the misfit scale); where the data are explained but hold far less
-    misfit than the term leaves (`GoodnessOfFit.overstated`), `long_wave_term`."""
+    chosen by the misfit (module docstring), and the fit it belongs to: the track-shaped term
+    where it is `None`, has no draws or the fit explains the data with it; else mixed with the
+    term of an error white over `RECORD_BAND`, its white share in `white_share`, the fit
+    repeated on records calibrated for that share (`_record_calibration.py`) and both terms
+    computed again there, the track-shaped term's misfit kept (so the data stay not explained)
+    and the mixture's in `mixed_misfits` (for the misfit scale); where the data are explained
+    but hold far less misfit than the term leaves (`GoodnessOfFit.overstated`),
+    `long_wave_term`."""
+    space, fit = done.space, done.fit
     track = track_record_term(space, fit, say)
     if track is None or not track.draws:
-        return track
+        return done, track
     goodness = fit_goodness(space, fit, track)
     if goodness.explained:
-        return long_wave_term(space, fit, track, say) if goodness.overstated else track
+        return done, long_wave_term(space, fit, track, say) if goodness.overstated else track
     say("the data are not explained with a track-shaped record error: trying a white one")
     white = track_record_term(space, fit, say, band=RECORD_BAND)
     w = least_surprising_share(
         lambda share: fit_goodness(space, fit, mixed_effect(track, white, share))
     )
     say(f"record error: {100 * w:.0f} % of its variance white over the recording band")
+    if w > 0.0:
+        done, track, white = calibrated_terms(done, w, say)
     mixed = mixed_effect(track, white, w)
-    return mixed._replace(
+    return done, mixed._replace(
         misfits=track.misfits, misfit_ss=track.misfit_ss, mixed_misfits=mixed.misfits
     )
+
+
+def calibrated_terms(done: Reweighted, w: float, say):
+    """For a white share `w` of the records' error: the fit repeated on records calibrated for
+    it (`_record_calibration.py`), and there the track-shaped term and the white one, whose
+    bias's refits calibrate their perturbed records for the doubled white variance (SIMEX of
+    the calibrated estimator; `_record_calibration.py`): (fit, track-shaped, white); the fit and
+    terms as they were where the refit fails."""
+    raw = done.space.program.problem.tracks
+    rms = done.space.program.problem.options.track_error * np.sqrt(w)
+    calibrated = calibrated_fit(done, rms, RECORD_BAND, say)
+    if calibrated.fit is done.fit:
+        track = track_record_term(done.space, done.fit, say)
+        return done, track, track_record_term(done.space, done.fit, say, band=RECORD_BAND)
+    space, fit = calibrated.space, calibrated.fit
+    twice = lambda records: calibrated_records(
+        records, space.program.problem, rms * np.sqrt(2.0), RECORD_BAND
+    )
+    track = track_record_term(space, fit, say)
+    white = track_record_term(space, fit, say, band=RECORD_BAND, raw=raw, prepare=twice)
+    return calibrated, track, white
 
 
 def long_wave_term(space, fit, track: TrackErrorEffect, say) -> TrackErrorEffect:

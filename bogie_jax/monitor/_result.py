@@ -88,7 +88,8 @@ class FitSummary:
     the fit explains the data as well as those errors allow; NaN without a `track_error`);
     `track_error_white_share`: the share of the records' error variance taken as white over
     the recording band rather than shaped like the track (`_record_shape.py`; 0 where the fit
-    explains the data with the track-shaped error; the data are not taken as explained by it);
+    explains the data with the track-shaped error; above 0, the fit is repeated on records
+    calibrated for it, `_record_calibration.py`; the data are not taken as explained by it);
     `track_error_long_wave_share`: the share taken as long-wave drift (`_record_shape.py`; above
     0 where the data hold far less misfit than a track-shaped error leaves)."""
 
@@ -216,8 +217,9 @@ class MonitorResult:
         if self.fit.track_error_white_share > 0:
             rows.append(
                 f"track records' error: {100 * self.fit.track_error_white_share:.0f} % of its "
-                "variance white over the recording band, in the standard errors (the misfit calls "
-                "for it; the data are not taken as explained by it)"
+                "variance white over the recording band, the fit repeated on records calibrated "
+                "for it and its spread in the standard errors (the misfit calls for it; the data "
+                "are not taken as explained by it)"
             )
         if self.fit.track_error_long_wave_share > 0:
             rows.append(

@@ -267,7 +267,8 @@ class Sampling:
 
 
 def track_error_effect(
-    fit, tracks, phi, error: RecordError, sampling: Sampling, *, references=None, start=None
+    fit, tracks, phi, error: RecordError, sampling: Sampling, *, references=None, start=None,
+    refit_records=None,
 ):  # fmt: skip
     """The `TrackErrorEffect` (module docstring) at the fit's estimate `phi` (n,).
 
@@ -279,7 +280,11 @@ def track_error_effect(
       residuals alone at the fit's tolerance (for the refits' chord steps);
     - `tracks`: the runs' `TrackIrregularity` records; `error`: the `RecordError` model;
       `sampling`: `Sampling`; `references`: the runs' `TrackReference`s or `None`s
-      (`record_error`); `start`: `fit.evaluate_on(tracks, phi)` where the caller has it.
+      (`record_error`); `start`: `fit.evaluate_on(tracks, phi)` where the caller has it;
+      `refit_records`: where the estimate came from records prepared from `tracks` (calibrated,
+      `_record_calibration.py`), the same preparation for the bias's perturbed records (a
+      callable from a list of records to the list the refit runs on), so that the refits'
+      shift is that of the whole procedure (SIMEX of the estimator as it is made).
 
     A draw whose derivative is not finite (a failed solve) is left out of the covariance and
     the misfit, a pair with a failed refit of the bias.
@@ -297,7 +302,10 @@ def track_error_effect(
     perturbed = [_with_error(tracks, e, sign) for e in errors for sign in (1, -1)]
     steps = sampling.refit_steps
     with ThreadPoolExecutor(sampling.workers or core_count()) as pool:
-        refits = [pool.submit(_refit, fit, x, phi, steps) for x in perturbed[: 2 * pairs]]
+        prepare = refit_records or (lambda records: records)
+        refits = [
+            pool.submit(_refit, fit, prepare(x), phi, steps) for x in perturbed[: 2 * pairs]
+        ]  # fmt: skip
         others = [pool.submit(fit.residuals_on, x, phi) for x in perturbed[2 * pairs :]]
         refits = [f.result() for f in refits]
         shifted = [r for r, _ in refits] + [np.asarray(f.result(), dtype=float) for f in others]

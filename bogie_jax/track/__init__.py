@@ -4,6 +4,7 @@ Channels, always in this order: 0 = lateral alignment `d_y` [m], 1 = vertical le
 2 = cross-level angle `gamma_d` [rad] (positive = left rail higher).
 """
 
+from ._calibration import calibrated_record as calibrated_record, wiener_gain as wiener_gain
 from ._irregularity import (
     TrackIrregularity as TrackIrregularity,
     TrackSampleError as TrackSampleError,
