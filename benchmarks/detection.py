@@ -329,6 +329,7 @@ def run_case(cfg: dict, index: int) -> dict:
         "misfit_ratio": result.fit.misfit_ratio,
         "track_error_white_share": result.fit.track_error_white_share,
         "track_error_long_wave_share": result.fit.track_error_long_wave_share,
+        "track_records_calibrated": result.fit.track_records_calibrated,
         "channel_noise": [list(c) for c in result.fit.channel_noise],
         "nuisance": {
             name: {key: float(p[key]) for key in ("estimate", "std_error", "nominal")}

@@ -283,7 +283,7 @@ def test_the_record_errors_shape_is_told_in_the_summary_json_and_report(white, l
         names=("yaw_dampers.left.c",), status="converged", steps=3, evaluations=4, cost=1.0,
         noise_variance=1.0, sigma2=1.0, rank=1, condition_number=1.0, runs_used=1,
         track_error=3e-4, track_error_draws=16, track_error_white_share=white,
-        track_error_long_wave_share=long,
+        track_error_long_wave_share=long, track_records_calibrated=white > 0,
     )  # fmt: skip
     result = MonitorResult((verdict,), (), fit, (), 0.05, {})
     told = "85 % of its variance white over the recording band"

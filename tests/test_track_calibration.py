@@ -6,6 +6,7 @@ import pytest
 
 from bogie_jax.track import TrackIrregularity, calibrated_record, wiener_gain
 
+
 DS = 0.25  # [m]
 N = 65536
 BAND = (3.0, 70.0)  # [m]

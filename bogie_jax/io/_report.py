@@ -248,10 +248,11 @@ def _record_error(fit) -> str:
     long = fit.get("track_error_long_wave_share") or 0.0
     shape = ", shaped like the track"
     if white > 0:
+        calibrated = "; the fit repeated on records calibrated for it"
         shape = (
             f", {100 * white:.0f} % of its variance white over the recording band (the misfit "
-            "calls for it; the fit repeated on records calibrated for it), the rest shaped like "
-            "the track"
+            f"calls for it{calibrated if fit.get('track_records_calibrated') else ''}), the rest "
+            "shaped like the track"
         )
     elif long > 0:
         shape = (

@@ -241,7 +241,8 @@ def fit_summary(space: FitSpace, judged: "_Judged | None") -> FitSummary:
         track_error_draws=0 if effect is None else effect.draws, horizons=fit_stages(space.program),
         misfit_ratio=misfit_ratio(space, judged),
         track_error_white_share=0.0 if effect is None else effect.white_share,
-        track_error_long_wave_share=0.0 if effect is None else effect.long_wave_share, **common,
+        track_error_long_wave_share=0.0 if effect is None else effect.long_wave_share,
+        track_records_calibrated=effect is not None and effect.calibrated, **common,
     )  # fmt: skip
 
 

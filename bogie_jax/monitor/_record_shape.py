@@ -37,7 +37,11 @@ vertical stiffnesses were -0.17 to -0.24 against fitted errors of -0.14 to -0.30
 healthy bogie's primary vertical dampers came out at 3.5 times nominal (4.9 standard errors
 off) with an extrapolated bias of -0.18; at 0.147 mm one came out at 1.77 times nominal and was
 called `degraded`. The mixture's covariance and, where it is too large to remove, its bias
-(`_judgement._track_covariance`) widen the intervals.
+(`_judgement._track_covariance`) widen the intervals. With two 8 s runs that was not enough:
+the standard errors shrink while such a bias stays (a healthy primary damper called `degraded`
+at 2.45 times nominal, 0.3 mm, its extrapolated bias +0.007). So where a white share is chosen
+the fit is repeated on records calibrated for it (`_record_calibration.py`: the Wiener
+estimate of the track, regression calibration), and both terms are computed again there.
 
 The other way round: a record's error can also hold less power where the bogie responds than
 the track shape puts there, as a recording car's long-wave drift does (EN 13848-1:2019's range
@@ -66,10 +70,9 @@ the record's own Fourier grid, a 120 m record holds one wave of D3, periodic ove
 drawn without the fade, it starts as a step into the run, whose transient the term then took
 for frame vertical misfit (with that term alone, 11 of 20 intervals held the truth in two 2 s
 drift cases; stationary, 20 of 20). The white term keeps the record's own grid without a fade:
-drawn stationary, it gave a healthy bogie of `track-white` (case 0) a primary damper alarm and
-6 of 10 intervals (before: none, 9 of 10). Its start step widens it where a white error's
-effect beyond first order needs the width; a stationary white term with that effect carried
-otherwise is still to come.
+drawn stationary, it gave a healthy bogie of `track-white` (case 0, 2 s runs, before
+calibration) a primary damper alarm and 6 of 10 intervals (on the record's grid: none, 9 of
+10).
 """
 
 import numpy as np
@@ -161,12 +164,14 @@ def record_term(done: Reweighted, say) -> tuple[Reweighted, TrackErrorEffect | N
         lambda share: fit_goodness(space, fit, mixed_effect(track, white, share))
     )
     say(f"record error: {100 * w:.0f} % of its variance white over the recording band")
+    calibrated = done
     if w > 0.0:
-        done, track, white = calibrated_terms(done, w, say)
+        calibrated, track, white = calibrated_terms(done, w, say)
     mixed = mixed_effect(track, white, w)
-    return done, mixed._replace(
-        misfits=track.misfits, misfit_ss=track.misfit_ss, mixed_misfits=mixed.misfits
-    )
+    return calibrated, mixed._replace(
+        misfits=track.misfits, misfit_ss=track.misfit_ss, mixed_misfits=mixed.misfits,
+        calibrated=calibrated is not done,
+    )  # fmt: skip
 
 
 def calibrated_terms(done: Reweighted, w: float, say):

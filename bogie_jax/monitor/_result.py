@@ -88,10 +88,11 @@ class FitSummary:
     the fit explains the data as well as those errors allow; NaN without a `track_error`);
     `track_error_white_share`: the share of the records' error variance taken as white over
     the recording band rather than shaped like the track (`_record_shape.py`; 0 where the fit
-    explains the data with the track-shaped error; above 0, the fit is repeated on records
-    calibrated for it, `_record_calibration.py`; the data are not taken as explained by it);
+    explains the data with the track-shaped error; the data are not taken as explained by it);
     `track_error_long_wave_share`: the share taken as long-wave drift (`_record_shape.py`; above
-    0 where the data hold far less misfit than a track-shaped error leaves)."""
+    0 where the data hold far less misfit than a track-shaped error leaves);
+    `track_records_calibrated`: whether the fit was repeated on records calibrated for the white
+    share (`_record_calibration.py`; False where the share is 0 or that fit failed)."""
 
     names: tuple[str, ...]
     status: str
@@ -118,6 +119,7 @@ class FitSummary:
     misfit_ratio: float = float("nan")
     track_error_white_share: float = 0.0
     track_error_long_wave_share: float = 0.0
+    track_records_calibrated: bool = False
 
     @property
     def explains_data(self) -> bool:
@@ -215,11 +217,12 @@ class MonitorResult:
                     f"{r.speed_factor_se:.1e}"
                 )
         if self.fit.track_error_white_share > 0:
+            calibrated = "the fit repeated on records calibrated for it and its spread "
             rows.append(
                 f"track records' error: {100 * self.fit.track_error_white_share:.0f} % of its "
-                "variance white over the recording band, the fit repeated on records calibrated "
-                "for it and its spread in the standard errors (the misfit calls for it; the data "
-                "are not taken as explained by it)"
+                "variance white over the recording band, "
+                f"{calibrated if self.fit.track_records_calibrated else ''}in the standard "
+                "errors (the misfit calls for it; the data are not taken as explained by it)"
             )
         if self.fit.track_error_long_wave_share > 0:
             rows.append(

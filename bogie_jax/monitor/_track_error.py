@@ -196,6 +196,7 @@ class TrackErrorEffect(NamedTuple):
     long_wave_share: float = 0.0  # of it white over the long waves (`_record_shape.py`)
     mixed_misfits: np.ndarray | None = None  # (draws, m): the mixed error's, where `misfits`
     # are the track-shaped draws' (`_record_shape.py`); the misfit scale's tests use them
+    calibrated: bool = False  # the fit repeated on records calibrated for the white share
 
 
 def _finite(*arrays) -> bool:
