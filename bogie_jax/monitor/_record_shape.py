@@ -166,7 +166,7 @@ def record_term(done: Reweighted, say) -> tuple[Reweighted, TrackErrorEffect | N
     say(f"record error: {100 * w:.0f} % of its variance white over the recording band")
     calibrated = done
     if w > 0.0:
-        calibrated, track, white = calibrated_terms(done, w, say)
+        calibrated, track, white = calibrated_terms(done, w, track, white, say)
     mixed = mixed_effect(track, white, w)
     return calibrated, mixed._replace(
         misfits=track.misfits, misfit_ss=track.misfit_ss, mixed_misfits=mixed.misfits,
@@ -174,18 +174,17 @@ def record_term(done: Reweighted, say) -> tuple[Reweighted, TrackErrorEffect | N
     )  # fmt: skip
 
 
-def calibrated_terms(done: Reweighted, w: float, say):
+def calibrated_terms(done: Reweighted, w: float, track, white, say):
     """For a white share `w` of the records' error: the fit repeated on records calibrated for
     it (`_record_calibration.py`), and there the track-shaped term and the white one, whose
     bias's refits calibrate their perturbed records for the doubled white variance (SIMEX of
-    the calibrated estimator; `_record_calibration.py`): (fit, track-shaped, white); the fit and
-    terms as they were where the refit fails."""
+    the calibrated estimator; `_record_calibration.py`): (fit, track-shaped, white); `done` and
+    the terms `track` and `white` where the refit fails."""
     raw = done.space.program.problem.tracks
     rms = done.space.program.problem.options.track_error * np.sqrt(w)
     calibrated = calibrated_fit(done, rms, RECORD_BAND, say)
-    if calibrated.fit is done.fit:
-        track = track_record_term(done.space, done.fit, say)
-        return done, track, track_record_term(done.space, done.fit, say, band=RECORD_BAND)
+    if calibrated is done:
+        return done, track, white
     space, fit = calibrated.space, calibrated.fit
     twice = lambda records: calibrated_records(
         records, space.program.problem, rms * np.sqrt(2.0), RECORD_BAND

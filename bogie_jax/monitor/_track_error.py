@@ -302,8 +302,8 @@ def track_error_effect(
     pairs = len(errors[: sampling.pairs])
     perturbed = [_with_error(tracks, e, sign) for e in errors for sign in (1, -1)]
     steps = sampling.refit_steps
+    prepare = refit_records or (lambda records: records)
     with ThreadPoolExecutor(sampling.workers or core_count()) as pool:
-        prepare = refit_records or (lambda records: records)
         refits = [
             pool.submit(_refit, fit, prepare(x), phi, steps) for x in perturbed[: 2 * pairs]
         ]  # fmt: skip
