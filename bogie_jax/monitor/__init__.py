@@ -79,6 +79,11 @@ from ._imperfections import (
     with_speed_error as with_speed_error,
     worn_wheels as worn_wheels,
 )
+from ._judgement import (
+    SIMEX_MAX_SPREAD as SIMEX_MAX_SPREAD,
+    estimate_of as estimate_of,
+    unsettled_bias as unsettled_bias,
+)
 from ._misfit_scale import (
     misfit_scales as misfit_scales,
     scaled_for_misfit as scaled_for_misfit,
