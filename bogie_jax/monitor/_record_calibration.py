@@ -28,9 +28,10 @@ goodness test had failed (detection `two_8s_runs_rerun` case 35, a track-shaped 
 share of 0.70 chosen) the calibrated fit left a misfit ratio of 4.0 (1.2 in the committed run,
 without calibration) and 8 of 13 intervals holding the truth (12); on the `track-white` cases
 0-3 the calibrated fits' residual variance lay 1-22 % below the uncalibrated run's.
-Where it is kept, its space's
-problem holds them as its tracks from then on, so the records' term, the profile tests and the
-goodness of fit see them too. The records' term is then computed again at the new estimate
+
+Where the calibrated fit is kept, its space's problem holds the calibrated records as its
+tracks from then on, so the records' term, the profile tests and the goodness of fit see them
+too. The records' term is then computed again at the new estimate
 (`_record_shape.calibrated_terms`). Its white part's spread is drawn as before, a white error
 of the share's RMS on the records (more than the error calibration leaves, whose spectrum is
 S_x S_e / S_r <= S_e: the intervals err wide there). Its bias is that of the estimator as it

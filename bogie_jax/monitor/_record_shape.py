@@ -41,7 +41,8 @@ called `degraded`. The mixture's covariance and, where it is too large to remove
 the standard errors shrink while such a bias stays (a healthy primary damper called `degraded`
 at 2.45 times nominal, 0.3 mm, its extrapolated bias +0.007). So where a white share is chosen
 the fit is repeated on records calibrated for it (`_record_calibration.py`: the Wiener
-estimate of the track, regression calibration), and both terms are computed again there.
+estimate of the track, regression calibration), kept where it explains the data better, and
+both terms are computed again there.
 
 The other way round: a record's error can also hold less power where the bogie responds than
 the track shape puts there, as a recording car's long-wave drift does (EN 13848-1:2019's range
@@ -146,8 +147,9 @@ def record_term(done: Reweighted, say) -> tuple[Reweighted, TrackErrorEffect | N
     chosen by the misfit (module docstring), and the fit it belongs to: the track-shaped term
     where it is `None`, has no draws or the fit explains the data with it; else mixed with the
     term of an error white over `RECORD_BAND`, its white share in `white_share`, the fit
-    repeated on records calibrated for that share (`_record_calibration.py`) and both terms
-    computed again there, the track-shaped term's misfit kept (so the data stay not explained)
+    repeated on records calibrated for that share where that explains the data better
+    (`_record_calibration.py`) and both terms computed again there (`calibrated` then true),
+    the track-shaped term's misfit kept (so the data stay not explained)
     and the mixture's in `mixed_misfits` (for the misfit scale); where the data are explained
     but hold far less misfit than the term leaves (`GoodnessOfFit.overstated`),
     `long_wave_term`."""
@@ -179,7 +181,7 @@ def calibrated_terms(done: Reweighted, w: float, track, white, say):
     it (`_record_calibration.py`), and there the track-shaped term and the white one, whose
     bias's refits calibrate their perturbed records for the doubled white variance (SIMEX of
     the calibrated estimator; `_record_calibration.py`): (fit, track-shaped, white); `done` and
-    the terms `track` and `white` where the refit fails."""
+    the terms `track` and `white` where that fit fails or does not explain the data better."""
     raw = done.space.program.problem.tracks
     rms = done.space.program.problem.options.track_error * np.sqrt(w)
     calibrated = calibrated_fit(done, rms, RECORD_BAND, say)
