@@ -340,10 +340,11 @@ def test_calibration_removes_the_attenuation_of_a_short_wave_response():
         base = TrackIrregularity(0.0, ds, u)
         record = TrackIrregularity(0.0, ds, u + error.draw(base, rng))
         cal = calibrated_record(record, rms, RECORD_BAND, SEMI)
-        slope = lambda t: (
-            float(second(np.asarray(t.values)[:, 0]) @ y)
-            / float(second(np.asarray(t.values)[:, 0]) @ second(np.asarray(t.values)[:, 0]))
-        )
+
+        def slope(t):
+            x = second(np.asarray(t.values)[:, 0])
+            return float(x @ y) / float(x @ x)
+
         raw.append(slope(record))
         a_hat = slope(cal)
         calibrated.append(a_hat)

@@ -179,8 +179,7 @@ class JointProgram:
         """The same runs with `records` as the problem's track records from now on (the same
         compiled program, whole runs): what every later use of the problem's tracks sees."""
         problem = dataclasses.replace(self.problem, tracks=tuple(records))
-        program = JointProgram.build(problem, None, self.active)
-        return dataclasses.replace(program, jacobian_rtol=self.jacobian_rtol)
+        return dataclasses.replace(self, problem=problem).on_records(problem.tracks)
 
     def with_loose_jacobian(self) -> "JointProgram":
         """The program whose Jacobian comes from solves at `MonitorOptions.jacobian_rtol`
