@@ -31,6 +31,7 @@ LAYERS = {
     "track": 1,
     "model": 2,
     "simulation": 3,
+    "small_motion": 3.2,  # the linearised model's response, exactly discretised
     "hunting": 3.5,  # the nonlinear critical speed: a speed ramp-down of simulations
     "measure": 4,
     "cost": 5,

@@ -9,6 +9,7 @@ from ._constants import ModelConstants as ModelConstants, model_constants as mod
 from ._dynamics import (
     BogieModel as BogieModel,
     accelerations as accelerations,
+    accelerations_from_inputs as accelerations_from_inputs,
     build_model as build_model,
     mass_matrix as mass_matrix,
     track_inputs as track_inputs,
@@ -39,6 +40,12 @@ from ._stability import (
     eigenvalues as eigenvalues,
     stability_sweep as stability_sweep,
     system_matrix as system_matrix,
+)
+from ._state_space import (
+    N_INPUTS as N_INPUTS,
+    SmallMotionSystem as SmallMotionSystem,
+    inputs_vector as inputs_vector,
+    small_motion_system as small_motion_system,
 )
 from ._table_range import beyond_contact_table as beyond_contact_table
 from ._wheel_rail import (

@@ -120,6 +120,13 @@ def accelerations(model: BogieModel, t, q, qd):
     each. XLA inlines it, so the compiled program and its results are unchanged; only tracing,
     which the persistent compilation cache cannot save, gets shorter."""
     w, wd, wdd = track_inputs(model, t)
+    return accelerations_from_inputs(model, q, qd, w, wd, wdd)
+
+
+def accelerations_from_inputs(model: BogieModel, q, qd, w, wd, wdd):
+    """q_ddot (10,) from the equations of motion with the track inputs under the wheelsets
+    given: `w`, `wd`, `wdd` (2, 3) as `track_inputs` returns them (per wheelset alignment [m],
+    level [m], cross level [rad] and their time derivatives)."""
     p = model.params
     suspension, f = _suspension_forces(model, q, qd, w, wd)
     wheelset_q = _wheelset_forces(model, q, qd, w, wd, wdd, f[:N_PRIMARY])
