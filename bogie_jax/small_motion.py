@@ -36,6 +36,7 @@ from .track import TrackIrregularity
 TAYLOR_DEGREE = 12
 """Degree of the Taylor polynomial of `expm` at a scaled norm <= 1/2 (truncation < 1e-13)."""
 MAX_SQUARINGS = 40
+"""Most squarings of `expm`: norms up to 2^39 (a step's a h far beyond any bogie's)."""
 
 
 def expm(m):
@@ -122,6 +123,8 @@ def simulate_small_motion(
             ) from None
         lead_in_steps = math.ceil(lead_time * sample_rate * substeps - 1e-9)
     check_positive_int("lead_in_steps", lead_in_steps, 10**7, lo=0)
+    if lead_in_steps == 0 and isinstance(lead_in, (int, float)) and lead_in > 0:
+        raise ValueError(f"`lead_in_steps` = 0 with `lead_in` = {lead_in:g} m; valid: >= 1")
     warn_if_float32()
     as_array = lambda x: jnp.asarray(x, dtype=float)
     return _small_motion_compiled(
@@ -136,6 +139,8 @@ def _small_motion_compiled(
     params, track, speed, start_position, lead_in, *, duration, sample_rate, options, substeps,
     lead_in_steps,
 ) -> Trajectory:  # fmt: skip
+    """`simulate_small_motion` after its checks, as one compiled program. The rest state is
+    taken at q = 0 where its Newton solve fails (`bogie_jax.model.small_motion_system`)."""
     system = small_motion_system(params, speed, options)
     model = build_model(params, speed=speed, track=track, options=options)
     inputs = jax.vmap(lambda t: inputs_vector(*track_inputs(model, t)))

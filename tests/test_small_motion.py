@@ -125,4 +125,6 @@ def test_bad_arguments_are_named_before_anything_runs(setting):
     with pytest.raises(ValueError, match="speed"):
         simulate_small_motion(params, track, **{**WINDOW, "speed": -1.0})
     with pytest.raises(ValueError, match="lead_in_steps"):
+        simulate_small_motion(params, track, lead_in_steps=0, **WINDOW)
+    with pytest.raises(ValueError, match="lead_in_steps"):
         jax.jit(lambda v: simulate_small_motion(params, track, **{**WINDOW, "speed": v}).q)(SPEED)
