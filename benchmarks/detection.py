@@ -207,6 +207,7 @@ def config_of(args) -> dict:
         **({"fit_model": args.fit_model} if args.fit_model != "linear" else {}),
         **({"fit_contact": args.fit_contact} if args.fit_contact is not None else {}),
         **({"fit_wear": args.fit_wear} if args.fit_wear is not None else {}),
+        **({"jacobian": args.jacobian} if args.jacobian != "full" else {}),
         **_mismatch.config(args.imperfections, args.drift_band),
     }
 
@@ -284,6 +285,7 @@ def case_inputs(cfg: dict, index: int) -> dict:
         false_alarm_rate=cfg["false_alarm_rate"], track_error=track_error,
         nuisance=None if nuisance is None else tuple(nuisance),
         model=nonlinear_options() if cfg.get("fit_model") == "nonlinear" else ModelOptions(),
+        jacobian=cfg.get("jacobian", "full"),
     )  # fmt: skip
     return dict(
         case=case, nominal=nominal, truth=truth, scenario=bogie["scenario"],
@@ -813,6 +815,11 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument(
         "--drift-band", type=_band, default=None, metavar="LO,HI",
         help="[m] the track-drift mode's wavelength band (default 70,200: EN 13848 D3)",
+    )  # fmt: skip
+    p.add_argument(
+        "--jacobian", choices=("small-motion", "full"), default="small-motion",
+        help="the model of the monitor's Jacobians (`MonitorOptions.jacobian`; records without "
+        "this key in their configuration were judged with `full`)",
     )  # fmt: skip
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")

@@ -18,6 +18,7 @@ product), so it costs far less than the diffrax solve of the full equations of m
 (`bogie_jax.simulate`), whose second-order terms it leaves out.
 """
 
+import dataclasses
 import math
 
 import diffrax as dfx
@@ -37,6 +38,20 @@ TAYLOR_DEGREE = 12
 """Degree of the Taylor polynomial of `expm` at a scaled norm <= 1/2 (truncation < 1e-13)."""
 MAX_SQUARINGS = 40
 """Most squarings of `expm`: norms up to 2^39 (a step's a h far beyond any bogie's)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SmallMotionSteps:
+    """The hold discretisation of `small_motion_response` (static: part of the program):
+    `substeps` hold steps per output sample (>= 1) and `lead_in_steps` over the lead-in (>= 0;
+    0: the motion starts at rest at the first sample)."""
+
+    substeps: int = 8
+    lead_in_steps: int = 0
+
+    def __post_init__(self):
+        check_positive_int("substeps", self.substeps, 1000)
+        check_positive_int("lead_in_steps", self.lead_in_steps, 10**7, lo=0)
 
 
 def expm(m):
@@ -127,20 +142,22 @@ def simulate_small_motion(
         raise ValueError(f"`lead_in_steps` = 0 with `lead_in` = {lead_in:g} m; valid: >= 1")
     warn_if_float32()
     as_array = lambda x: jnp.asarray(x, dtype=float)
-    return _small_motion_compiled(
+    return small_motion_response(
         params, track, as_array(speed), as_array(start_position), as_array(lead_in),
-        duration=duration, sample_rate=sample_rate, options=options, substeps=substeps,
-        lead_in_steps=lead_in_steps,
+        duration=duration, sample_rate=sample_rate, options=options,
+        steps=SmallMotionSteps(substeps, lead_in_steps),
     )  # fmt: skip
 
 
 @eqx.filter_jit
-def _small_motion_compiled(
-    params, track, speed, start_position, lead_in, *, duration, sample_rate, options, substeps,
-    lead_in_steps,
-) -> Trajectory:  # fmt: skip
-    """`simulate_small_motion` after its checks, as one compiled program. The rest state is
-    taken at q = 0 where its Newton solve fails (`bogie_jax.model.small_motion_system`)."""
+def small_motion_response(
+    params, track, speed, start_position, lead_in, *, duration, sample_rate, options, steps
+) -> Trajectory:
+    """`simulate_small_motion` without its checks, as one compiled program (traceable: the
+    residuals of `bogie_jax.cost` call it inside theirs); `steps` a `SmallMotionSteps`. The
+    rest state is taken at q = 0 where its Newton solve fails
+    (`bogie_jax.model.small_motion_system`)."""
+    substeps, lead_in_steps = steps.substeps, steps.lead_in_steps
     system = small_motion_system(params, speed, options)
     model = build_model(params, speed=speed, track=track, options=options)
     inputs = jax.vmap(lambda t: inputs_vector(*track_inputs(model, t)))

@@ -29,6 +29,7 @@ from .._validation import nonempty_tuple
 from ..params import BogieParams, ModelOptions
 from ..runtime.solve_settings import resolve_settings
 from ..simulation import SolveSettings
+from ..small_motion import SmallMotionSteps
 from ._make import make_objective
 from ._objective import Objective, ResidualModel
 from ._run_corrections import RunCorrections, check_corrections
@@ -49,7 +50,9 @@ class JointResidualModel(eqx.Module):
     - `corrections`: `RunCorrections` (n_runs,) applied to every run (`with_corrections`),
       mapped with the stacked run leaves; `None`: none;
     - `stop_after` [s]: every run's solve stops that long after its first sample (`simulate`;
-      the later residuals are not used), traced; `None`: the whole runs.
+      the later residuals are not used), traced; `None`: the whole runs;
+    - `small_motion`: `None`, or every run on the small-motion model with these
+      `SmallMotionSteps` (`with_small_motion`).
     """
 
     params: BogieParams
@@ -61,6 +64,7 @@ class JointResidualModel(eqx.Module):
     vmapped: bool = eqx.field(static=True)
     corrections: RunCorrections | None = None
     stop_after: Float[Array, ""] | None = None
+    small_motion: SmallMotionSteps | None = eqx.field(static=True, default=None)
 
     @property
     def n_runs(self) -> int:
@@ -85,9 +89,20 @@ class JointResidualModel(eqx.Module):
             corrections = self.corrections + corrections
         return dataclasses.replace(self, corrections=corrections)
 
+    def with_small_motion(self, substeps: int = 8) -> "JointResidualModel":
+        """Every run on the small-motion model (`ResidualModel.with_small_motion`), the
+        lead-in's steps those of the run with the longest lead-in."""
+        steps = [m.with_small_motion(substeps).small_motion for m in self.runs()]
+        lead_in_steps = max(s.lead_in_steps for s in steps)
+        return dataclasses.replace(self, small_motion=SmallMotionSteps(substeps, lead_in_steps))
+
     def _run(self, model: ResidualModel, corrections) -> ResidualModel:
-        """One run with this model's `settings` and its corrections (if any)."""
-        model = dataclasses.replace(model, settings=self.settings, stop_after=self.stop_after)
+        """One run with this model's `settings`, `stop_after`, `small_motion` and its
+        corrections (if any)."""
+        model = dataclasses.replace(
+            model, settings=self.settings, stop_after=self.stop_after,
+            small_motion=self.small_motion,
+        )  # fmt: skip
         return model if corrections is None else model.with_corrections(corrections)
 
     def _run_corrections(self, k: int):

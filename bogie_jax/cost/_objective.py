@@ -10,6 +10,7 @@ constant factor 1/f_s dropped). theta holds the selected parameters in unconstra
 """
 
 import dataclasses
+import math
 
 import diffrax as dfx
 import equinox as eqx
@@ -21,6 +22,7 @@ from ..measure import sensor_readings
 from ..model import build_model
 from ..params import BogieParams, ModelOptions
 from ..simulation import SolveSettings, Trajectory, simulate
+from ..small_motion import SmallMotionSteps, small_motion_response
 from ..track import TrackIrregularity
 from ._run_corrections import CorrectedObjective, RunCorrections, check_corrections
 from ._selection import ParameterSelection
@@ -42,7 +44,9 @@ class ResidualModel(eqx.Module):
     the static equilibrium of the parameters `p` being evaluated, solved inside the traced
     function), `stop_after` [s] (`simulate`'s: the samples after it are not simulated and
     their residuals mean nothing; `None`: all are), the `sensors` and the `SolveSettings`
-    passed to `simulate` (default `SolveSettings.for_objective()`). `start_position` and
+    passed to `simulate` (default `SolveSettings.for_objective()`), and `small_motion`: `None`
+    (the equations of motion, `simulate`) or the `SmallMotionSteps` of the small-motion model
+    (`bogie_jax.small_motion`, set by `with_small_motion`). `start_position` and
     `lead_in` are arrays (traced): every window of the same sample count shares one
     compilation. Build it through `make_objective`.
     """
@@ -62,6 +66,7 @@ class ResidualModel(eqx.Module):
     start_position: Float[Array, ""] = eqx.field(default=0.0, converter=_as_float)
     lead_in: Float[Array, ""] = eqx.field(default=0.0, converter=_as_float)
     stop_after: Float[Array, ""] | None = None
+    small_motion: SmallMotionSteps | None = eqx.field(static=True, default=None)
 
     # Read-only views of `settings` (backward compatibility).
     solver = property(lambda self: self.settings.solver)
@@ -92,8 +97,28 @@ class ResidualModel(eqx.Module):
             self, start_position=self.start_position + offset, speed=self.speed * factor
         )
 
+    def with_small_motion(self, substeps: int = 8) -> "ResidualModel":
+        """This run simulated by the small-motion model (`bogie_jax.small_motion`) with
+        `substeps` hold steps per sample and the lead-in's steps at that step length: the
+        residuals of the linearised equations of motion, whose derivatives approximate the
+        full model's (docs/model.md). Needs concrete `lead_in` and `speed`; **Raises:**
+        `ValueError` for a fixed `y0`, which the small-motion model cannot start from."""
+        if self.y0 is not None:
+            raise ValueError("`y0` must be None for the small-motion model (it starts at rest)")
+        lead_time = float(self.lead_in) / float(self.speed)
+        lead_in_steps = math.ceil(lead_time * self.sample_rate * substeps - 1e-9)
+        steps = SmallMotionSteps(substeps, lead_in_steps)
+        return dataclasses.replace(self, small_motion=steps)
+
     def simulate(self, params: BogieParams) -> Trajectory:
-        """The simulated run at parameters `params`."""
+        """The simulated run at parameters `params` (by the small-motion model where
+        `small_motion` is set: every sample, whatever `stop_after`)."""
+        if self.small_motion is not None:
+            return small_motion_response(
+                params, self.track, self.speed, self.start_position, self.lead_in,
+                duration=self.duration, sample_rate=self.sample_rate, options=self.options,
+                steps=self.small_motion,
+            )  # fmt: skip
         return simulate(
             params,
             self.track,

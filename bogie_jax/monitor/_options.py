@@ -22,6 +22,7 @@ from ._verdict import check_false_alarm_rate
 
 
 JACOBIAN_RTOL = 1e-4  # `MonitorOptions.jacobian_rtol`'s default (`_program.py`)
+JACOBIANS = ("small-motion", "full")  # `MonitorOptions.jacobian`'s values (`_program.py`)
 
 
 def _names(value) -> tuple[str, ...] | None:
@@ -61,6 +62,10 @@ class MonitorOptions:
       cost: the first Jacobian, the horizon stages and the track records' term
       (`_program.py`), where `settings` has a `PIDController` with a smaller one. `None`: the
       settings' own throughout.
+    - `jacobian`: the model whose derivatives give every Jacobian (`_program.py`):
+      `"small-motion"` (the equations of motion linearised about the rest state,
+      `bogie_jax.small_motion`) or `"full"` (the equations of motion, with `jacobian_rtol`).
+      The residuals, and so the cost every step is accepted on, are the full model's in both.
     """
 
     candidates: tuple[str, ...] | None = None
@@ -82,6 +87,7 @@ class MonitorOptions:
     settings: SolveSettings | None = None
     weights: object = None
     jacobian_rtol: float | None = JACOBIAN_RTOL
+    jacobian: str = "small-motion"
 
     def __post_init__(self):
         set_ = lambda name, value: object.__setattr__(self, name, value)
@@ -101,6 +107,8 @@ class MonitorOptions:
         check_positive_int("track_error_draws", self.track_error_draws, lo=2)
         if self.jacobian_rtol is not None:
             check_number("jacobian_rtol", self.jacobian_rtol, 0.0, 1.0, open_lo=True, open_hi=True)
+        if self.jacobian not in JACOBIANS:
+            raise ValueError(f"`jacobian` = {self.jacobian!r} must be one of {JACOBIANS}")
         if not isinstance(self.model, ModelOptions):
             raise TypeError(f"`model` must be a ModelOptions, got {type(self.model).__name__}")
         if self.settings is not None and not isinstance(self.settings, SolveSettings):

@@ -203,12 +203,12 @@ class JointProgram:
         settings' tolerance, J at `jacobian_rtol` (module docstring), J's columns in blocks
         (`column_blocks`), each block and r on a thread of their own."""
         x = jnp.asarray(x)
-        loose = self.derivative_objective()
-        separate = loose is not self.objective  # else one solve gives both
+        derivatives = self.jacobian_objective()
+        separate = derivatives is not self.objective  # else one solve gives both
         # J's program traced first where the store traces apart from compiling: its tracing
         # and compile are the longest, and the residuals' tracing would share the interpreter
         blocks = [
-            _program("residual_jacobian", _JACOBIAN, loose, x, None, jnp.asarray(d))
+            _program("residual_jacobian", _JACOBIAN, derivatives, x, None, jnp.asarray(d))
             for d in column_blocks(x.size)
         ]
         with ThreadPoolExecutor(len(blocks) + separate) as pool:
@@ -224,6 +224,15 @@ class JointProgram:
         objective = self.objective if objective is None else objective
         r = _through_store("residuals", _residuals, objective, jnp.asarray(x))
         return np.asarray(jax.block_until_ready(r))
+
+    def jacobian_objective(self):
+        """The objective whose forward-mode derivatives give J: the runs on the small-motion
+        model where `MonitorOptions.jacobian` is `"small-motion"`, else
+        `derivative_objective()` (module docstring)."""
+        if self.problem.options.jacobian != "small-motion":
+            return self.derivative_objective()
+        joint = self._runs(self.objective)
+        return eqx.tree_at(self._runs, self.objective, joint.with_small_motion())
 
     def derivative_objective(self):
         """The objective whose solves give derivatives: its step-size controller's tolerances
