@@ -112,6 +112,7 @@ def simulate_small_motion(
     lead_in_steps: int | None = None,
     options: ModelOptions = ModelOptions(),
     substeps: int = 8,
+    y0=None,
 ) -> Trajectory:
     """The small-motion model's response to `track` at constant `speed` (module docstring), from
     rest `lead_in` [m] before the first sample, as a `Trajectory` (q, q_dot, q_ddot at the
@@ -120,7 +121,9 @@ def simulate_small_motion(
     - `substeps`: hold steps per output sample (static, >= 1; default 8: at 100 Hz, 60 m/s a
       step of 7.5 cm, 40 per 3 m wavelength);
     - `lead_in_steps`: hold steps over the lead-in (static); default: the lead-in's time at
-      the window's step length, rounded up, which needs `lead_in` and `speed` concrete.
+      the window's step length, rounded up, which needs `lead_in` and `speed` concrete;
+    - `y0`: the state (20,) [m, rad, m/s, rad/s] at the start of the lead-in; default `None`:
+      at rest in the static equilibrium.
 
     **Raises:** `ValueError` naming the argument, its value and the valid range (as
     `bogie_jax.simulate`), before anything is compiled.
@@ -140,22 +143,26 @@ def simulate_small_motion(
     check_positive_int("lead_in_steps", lead_in_steps, 10**7, lo=0)
     if lead_in_steps == 0 and isinstance(lead_in, (int, float)) and lead_in > 0:
         raise ValueError(f"`lead_in_steps` = 0 with `lead_in` = {lead_in:g} m; valid: >= 1")
+    if y0 is not None and jnp.shape(y0) != (2 * N_DOF,):
+        raise ValueError(f"`y0` has shape {jnp.shape(y0)}; valid: ({2 * N_DOF},)")
     warn_if_float32()
     as_array = lambda x: jnp.asarray(x, dtype=float)
     return small_motion_response(
         params, track, as_array(speed), as_array(start_position), as_array(lead_in),
         duration=duration, sample_rate=sample_rate, options=options,
-        steps=SmallMotionSteps(substeps, lead_in_steps),
+        steps=SmallMotionSteps(substeps, lead_in_steps), y0=None if y0 is None else as_array(y0),
     )  # fmt: skip
 
 
 @eqx.filter_jit
 def small_motion_response(
-    params, track, speed, start_position, lead_in, *, duration, sample_rate, options, steps
+    params, track, speed, start_position, lead_in, *, duration, sample_rate, options, steps,
+    y0=None,
 ) -> Trajectory:
     """`simulate_small_motion` without its checks, as one compiled program (traceable: the
-    residuals of `bogie_jax.cost` call it inside theirs); `steps` a `SmallMotionSteps`. The
-    rest state is taken at q = 0 where its Newton solve fails
+    residuals of `bogie_jax.cost` call it inside theirs); `steps` a `SmallMotionSteps`; `y0`
+    (20,) the state at the start of the lead-in (`None`: at rest in the static equilibrium).
+    The rest state is taken at q = 0 where its Newton solve fails
     (`bogie_jax.model.small_motion_system`)."""
     substeps, lead_in_steps = steps.substeps, steps.lead_in_steps
     system = small_motion_system(params, speed, options)
@@ -164,7 +171,7 @@ def small_motion_response(
     first = start_position / speed
     window = sample_times(duration, sample_rate)
     h = 1.0 / (sample_rate * substeps)
-    dy = jnp.zeros_like(system.rest)
+    dy = jnp.zeros_like(system.rest) if y0 is None else jnp.asarray(y0) - system.rest
     if lead_in_steps > 0:
         lead = lead_in / speed
         t_lead = first - lead + lead * jnp.arange(lead_in_steps + 1) / lead_in_steps

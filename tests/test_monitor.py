@@ -592,25 +592,55 @@ def test_monitor_continues_over_the_horizon_where_one_fit_misses_the_speed(healt
     _non_alarms_are_healthy(result)
 
 
-@pytest.mark.heavy
-def test_a_looser_jacobian_in_the_stages_and_the_records_term_keeps_the_verdicts(yaw_left_50):
-    """The first Jacobian, the horizon stages and the track records' term with J from solves
-    at rtol 1e-4 (the default `jacobian_rtol`) against J from the residuals' own solves (rtol
-    1e-6): the same verdicts, estimates within 0.05 of a standard error and standard errors
-    within 2 % (the module's noise-free 0.5 s runs, stages from 0.125 s, a 0.3 mm record error
-    told)."""
+@pytest.fixture(scope="module")
+def jacobian_variants(yaw_left_50):
+    """`monitor` on the module's noise-free 0.5 s runs (stages from 0.125 s, a 0.3 mm record
+    error told) with J from the equations of motion at the residuals' own tolerance (rtol
+    1e-6), at rtol 1e-4 (the default `jacobian_rtol`), and from the small-motion model."""
     options = MonitorOptions(horizon_start=0.125, track_error=3e-4)
-    results = [
-        monitor(yaw_left_50, options=dataclasses.replace(options, jacobian_rtol=rtol))
-        for rtol in (None, 1e-4)
-    ]
-    tight, loose = results
-    assert tight.fit.horizons == loose.fit.horizons == (0.125, 0.25)
-    for a, b in zip(tight.verdicts, loose.verdicts):
-        assert (a.name, a.verdict) == (b.name, b.verdict)
-        if np.isfinite(a.std_error):
-            assert abs(b.estimate - a.estimate) <= 0.05 * a.std_error, (a.name, a, b)
-            assert b.std_error == pytest.approx(a.std_error, rel=0.02), a.name
+    variants = {
+        "tight": dict(jacobian="full", jacobian_rtol=None),
+        "loose": dict(jacobian="full"),
+        "small-motion": dict(jacobian="small-motion"),
+    }
+    return {
+        name: monitor(yaw_left_50, options=dataclasses.replace(options, **changes))
+        for name, changes in variants.items()
+    }
+
+
+def _same_verdicts(a, b, estimates: float, std_errors: float):
+    """The same verdicts; estimates within `estimates` of a's standard error, standard errors
+    within `std_errors` (relative); the largest of each named on failure."""
+    assert a.fit.horizons == b.fit.horizons == (0.125, 0.25)
+    shifts, ratios = {}, {}
+    for u, v in zip(a.verdicts, b.verdicts):
+        assert (u.name, u.verdict) == (v.name, v.verdict)
+        if np.isfinite(u.std_error):
+            shifts[u.name] = abs(v.estimate - u.estimate) / u.std_error
+            ratios[u.name] = abs(v.std_error / u.std_error - 1.0)
+    worst = lambda d: max(d.items(), key=lambda kv: kv[1])
+    assert worst(shifts)[1] <= estimates, worst(shifts)
+    assert worst(ratios)[1] <= std_errors, (worst(ratios), sorted(ratios.values()))
+
+
+@pytest.mark.heavy
+def test_a_looser_jacobian_in_the_stages_and_the_records_term_keeps_the_verdicts(
+    jacobian_variants,
+):
+    """The first Jacobian, the horizon stages and the track records' term with J from solves
+    at rtol 1e-4 against J from the residuals' own solves (rtol 1e-6): the same verdicts,
+    estimates within 0.05 of a standard error and standard errors within 2 %."""
+    _same_verdicts(jacobian_variants["tight"], jacobian_variants["loose"], 0.05, 0.02)
+
+
+@pytest.mark.heavy
+def test_the_small_motion_jacobian_keeps_the_verdicts(jacobian_variants):
+    """Every Jacobian from the small-motion model (the residuals from the equations of motion)
+    against every one from the equations of motion at the residuals' tolerance (the oracle: its
+    forward-mode derivatives, checked against finite differences in test_gradients.py):
+    the same verdicts, estimates within 0.1 of a standard error, standard errors within 3 %."""
+    _same_verdicts(jacobian_variants["tight"], jacobian_variants["small-motion"], 0.1, 0.03)
 
 
 @pytest.mark.heavy

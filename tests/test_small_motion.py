@@ -118,6 +118,22 @@ def test_the_small_motion_model_is_the_full_model_to_first_order(setting):
     assert 5.0 < errors[1] / errors[0] < 20.0
 
 
+def test_a_start_off_rest_decays_as_the_matrix_exponential(setting):
+    """Oracle: on a track without irregularity the deviation from rest from `y0` is
+    expm(a t) (y0 - rest) (scipy's matrix exponential), t from the start of the lead-in."""
+    params, track = setting
+    system = small_motion_system(params, SPEED)
+    kick = np.zeros(20)
+    kick[[0, 1, 10, 11]] = [2e-3, 1e-3, 0.05, -0.02]  # wheelset 1: y [m], yaw [rad], rates
+    y0 = np.asarray(system.rest) + kick
+    lin = simulate_small_motion(params, _scaled(track, 0.0), y0=y0, **WINDOW)
+    t = np.asarray(lin.ts) - (WINDOW["start_position"] - WINDOW["lead_in"]) / SPEED
+    a = np.asarray(system.a)
+    expected = np.stack([scipy.linalg.expm(a * tk) @ kick for tk in t])
+    got = np.concatenate([lin.q, lin.qd], axis=1) - np.asarray(system.rest)
+    assert np.max(np.abs(got - expected)) < 1e-9 * np.max(np.abs(kick)) + 1e-12
+
+
 def test_bad_arguments_are_named_before_anything_runs(setting):
     params, track = setting
     with pytest.raises(ValueError, match="substeps"):
@@ -126,5 +142,7 @@ def test_bad_arguments_are_named_before_anything_runs(setting):
         simulate_small_motion(params, track, **{**WINDOW, "speed": -1.0})
     with pytest.raises(ValueError, match="lead_in_steps"):
         simulate_small_motion(params, track, lead_in_steps=0, **WINDOW)
+    with pytest.raises(ValueError, match="y0"):
+        simulate_small_motion(params, track, y0=np.zeros(3), **WINDOW)
     with pytest.raises(ValueError, match="lead_in_steps"):
         jax.jit(lambda v: simulate_small_motion(params, track, **{**WINDOW, "speed": v}).q)(SPEED)

@@ -101,10 +101,8 @@ class ResidualModel(eqx.Module):
         """This run simulated by the small-motion model (`bogie_jax.small_motion`) with
         `substeps` hold steps per sample and the lead-in's steps at that step length: the
         residuals of the linearised equations of motion, whose derivatives approximate the
-        full model's (docs/model.md). Needs concrete `lead_in` and `speed`; **Raises:**
-        `ValueError` for a fixed `y0`, which the small-motion model cannot start from."""
-        if self.y0 is not None:
-            raise ValueError("`y0` must be None for the small-motion model (it starts at rest)")
+        full model's (docs/model.md), from this run's `y0`. Needs concrete `lead_in` and
+        `speed`."""
         lead_time = float(self.lead_in) / float(self.speed)
         lead_in_steps = math.ceil(lead_time * self.sample_rate * substeps - 1e-9)
         steps = SmallMotionSteps(substeps, lead_in_steps)
@@ -117,7 +115,7 @@ class ResidualModel(eqx.Module):
             return small_motion_response(
                 params, self.track, self.speed, self.start_position, self.lead_in,
                 duration=self.duration, sample_rate=self.sample_rate, options=self.options,
-                steps=self.small_motion,
+                steps=self.small_motion, y0=self.y0,
             )  # fmt: skip
         return simulate(
             params,
