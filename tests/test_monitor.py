@@ -638,9 +638,10 @@ def test_a_looser_jacobian_in_the_stages_and_the_records_term_keeps_the_verdicts
 def test_the_small_motion_jacobian_keeps_the_verdicts(jacobian_variants):
     """Every Jacobian from the small-motion model (the residuals from the equations of motion)
     against every one from the equations of motion at the residuals' tolerance (the oracle: its
-    forward-mode derivatives, checked against finite differences in test_gradients.py):
-    the same verdicts, estimates within 0.1 of a standard error, standard errors within 3 %."""
-    _same_verdicts(jacobian_variants["tight"], jacobian_variants["small-motion"], 0.1, 0.03)
+    forward-mode derivatives, checked against finite differences in test_gradients.py): the
+    same verdicts, estimates within 0.1 of a standard error, standard errors within 8 % (a 95 %
+    interval 8 % too narrow or too wide covers 93-97 %)."""
+    _same_verdicts(jacobian_variants["tight"], jacobian_variants["small-motion"], 0.1, 0.08)
 
 
 @pytest.mark.heavy

@@ -11,17 +11,17 @@ looser Jacobian, below, and the records' draws and refits' chord steps of `_trac
 on other records). Both go through the program store where the process keeps one (the command
 line).
 
-**Two tolerances** (`MonitorOptions.jacobian_rtol`). The residuals set the estimate, and its
-cost differences every profile test; the Jacobian sets the Gauss-Newton step and the
-covariance, which an error of order delta in J moves by order delta. Where a step need not be
-accepted on the residuals' cost, J may come from solves at a looser tolerance than r
-(`with_loose_jacobian`): the first Jacobian, at the nominal bogie (the identifiability rule),
-the horizon stages, whose estimate the whole-record fit refines, and the track records' term
-(its first-order derivatives and its refits' Gauss-Newton steps). r is then solved at the
-settings' tolerance by a program of its own and J at `jacobian_rtol`, all at once on threads
-of their own. The whole-record fit and the profile tests keep one tight solve for both: with J at
-rtol 1e-4 a final fit stalled with its steps rejected, 4.6 cost units above the optimum (J's
-speed-factor columns differ by about 1 %, the others by 2e-4).
+**Two models** (`MonitorOptions.jacobian`). The residuals set the estimate, and its cost
+differences every profile test; the Jacobian sets the Gauss-Newton step and the covariance,
+which an error of order delta in J moves by order delta. r comes from the equations of motion
+solved at the settings' tolerance; J by default from the small-motion model
+(`jacobian_objective`: `bogie_jax.small_motion`, the runs' equations linearised about the rest
+state, 1-4 % from the full model's columns), evaluated beside r on threads of their own. With
+`jacobian="full"`, J comes from the equations of motion: at `jacobian_rtol` where no step is
+accepted on the residuals' cost (`with_loose_jacobian`: the first Jacobian, the horizon stages
+and the track records' term), from r's own tight solve in the whole-record fit and the profile
+tests (with J at rtol 1e-4 a final fit stalled with its steps rejected, 4.6 cost units above the
+optimum: J's speed-factor columns differ by about 1 %, the others by 2e-4).
 
 `FitSpace` maps the fitted coordinates v to x = B v (`_nuisance.NuisanceLayout.matrix`), keeps
 the rows within the fitted horizon (`_horizon.py`), removes the sensor bias by the projection
