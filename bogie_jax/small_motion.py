@@ -156,7 +156,16 @@ def simulate_small_motion(
 
 @eqx.filter_jit
 def small_motion_response(
-    params, track, speed, start_position, lead_in, *, duration, sample_rate, options, steps,
+    params,
+    track,
+    speed,
+    start_position,
+    lead_in,
+    *,
+    duration,
+    sample_rate,
+    options,
+    steps,
     y0=None,
 ) -> Trajectory:
     """`simulate_small_motion` without its checks, as one compiled program (traceable: the
