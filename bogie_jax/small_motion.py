@@ -156,17 +156,7 @@ def simulate_small_motion(
 
 @eqx.filter_jit
 def small_motion_response(
-    params,
-    track,
-    speed,
-    start_position,
-    lead_in,
-    *,
-    duration,
-    sample_rate,
-    options,
-    steps,
-    y0=None,
+    params, track, speed, start_position, lead_in, *, duration, sample_rate, options, steps, y0=None
 ) -> Trajectory:
     """`simulate_small_motion` without its checks, as one compiled program (traceable: the
     residuals of `bogie_jax.cost` call it inside theirs); `steps` a `SmallMotionSteps`; `y0`
