@@ -68,6 +68,6 @@ def small_motion_system(
     model = build_model(params, speed=speed, track=perfect_track(), options=options)
     rest = rest_state(params, options)
     zero = jnp.zeros(N_INPUTS, dtype=rest.dtype)
-    a = jax.jacfwd(_field, argnums=1)(model, rest, zero)
-    b = jax.jacfwd(_field, argnums=2)(model, rest, zero)
-    return SmallMotionSystem(a=a, b=b, rest=rest)
+    n = rest.size  # one jacfwd over (y, u) together: one batched evaluation of the field
+    jac = jax.jacfwd(lambda yu: _field(model, yu[:n], yu[n:]))(jnp.concatenate([rest, zero]))
+    return SmallMotionSystem(a=jac[:, :n], b=jac[:, n:], rest=rest)
