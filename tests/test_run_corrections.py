@@ -322,3 +322,32 @@ def test_fitted_corrections_recover_offset_and_speed(corrected):
     print(f"fit without corrections: theta = {biased[0]:.4f}, cost {cost_biased:.3e}")
     assert abs(biased[0]) > 0.03
     assert cost_biased > 1e3
+
+
+def test_other_records_swapped_in_give_the_rebuilt_objectives_residuals(
+    measurements, nominal, records, corrected
+):
+    """`JointResidualModel.with_tracks`: records of the same grids swapped into the corrected
+    joint objective give the residuals of the objective built on them (`make_joint_objective`);
+    a record on another grid is refused, naming it."""
+    other = tuple(
+        TrackIrregularity(t.s0, t.ds, 0.5 * np.asarray(t.values) + 1e-4) for t in records
+    )  # fmt: skip
+    rebuilt = make_joint_objective(measurements, nominal, other, NAMES, settings=SETTINGS)
+    rebuilt = rebuilt.with_run_corrections()
+    joint = corrected.objective.residual_model
+    swapped = eqx.tree_at(
+        lambda o: o.objective.residual_model, corrected, joint.with_tracks(other)
+    )  # fmt: skip
+    x = corrected.join(THETA, _corrections())
+    expected = np.asarray(_residuals(rebuilt, x))
+    got = np.asarray(_residuals(swapped, x))
+    assert np.max(np.abs(got - expected)) <= 1e-12 * np.max(np.abs(expected))
+    assert np.max(np.abs(got - np.asarray(_residuals(corrected, x)))) > 1e-3 * np.max(
+        np.abs(expected)
+    )
+    shifted = (TrackIrregularity(other[0].s0 + 0.1, other[0].ds, other[0].values), other[1])
+    with pytest.raises(ValueError, match=r"`tracks\[0\]`.*not on the grid"):
+        joint.with_tracks(shifted)
+    with pytest.raises(ValueError, match="1 records for 2 runs"):
+        joint.with_tracks(other[:1])

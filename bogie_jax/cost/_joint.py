@@ -96,6 +96,36 @@ class JointResidualModel(eqx.Module):
         lead_in_steps = max(s.lead_in_steps for s in steps)
         return dataclasses.replace(self, small_motion=SmallMotionSteps(substeps, lead_in_steps))
 
+    def with_tracks(self, tracks) -> "JointResidualModel":
+        """The runs on other track records of the same grids: `tracks`, one
+        `TrackIrregularity` per run with the `s0`, `ds` and sample count of the record held
+        for it (runs whose records differ in length hold the shorter ones padded to the
+        longest: build the objective again for those); the same compiled program, without
+        building the runs again. **Raises:** `ValueError` for another count of records or
+        another grid."""
+        tracks = tuple(tracks)
+        if len(tracks) != self.n_runs:
+            raise ValueError(f"`tracks` has {len(tracks)} records for {self.n_runs} runs")
+        held = self._tracks()
+        for k, (old, new) in enumerate(zip(held, tracks)):
+            if not _same_grid(old, new):
+                raise ValueError(
+                    f"`tracks[{k}]` ({new.num_samples} samples from s0 = {float(new.s0):g} m "
+                    f"at ds = {float(new.ds):g} m) is not on the grid held for run {k} "
+                    f"({old.num_samples} from {float(old.s0):g} m at {float(old.ds):g} m)"
+                )
+        if not self.vmapped:
+            shared = tuple(dataclasses.replace(m, track=t) for m, t in zip(self.shared, tracks))
+            return dataclasses.replace(self, shared=shared)
+        stacked = jax.tree.map(lambda *leaves: jnp.stack(leaves), *tracks)
+        return dataclasses.replace(self, batched=dataclasses.replace(self.batched, track=stacked))
+
+    def _tracks(self) -> tuple:
+        """Each run's track record as held (padded to the longest where vmapped)."""
+        if not self.vmapped:
+            return tuple(m.track for m in self.shared)
+        return tuple(jax.tree.map(lambda x: x[k], self.batched.track) for k in range(self.n_runs))
+
     def _run(self, model: ResidualModel, corrections) -> ResidualModel:
         """One run with this model's `settings`, `stop_after`, `small_motion` and its
         corrections (if any)."""
@@ -167,6 +197,13 @@ def _same(a, b) -> bool:
         return bool(a == b)
     except Exception:  # noqa: BLE001 - objects without a boolean equality are not the same
         return False
+
+
+def _same_grid(a, b) -> bool:
+    """Whether track records `a` and `b` have one sampling grid (s0, ds, sample count)."""
+    return (
+        a.num_samples == b.num_samples and float(a.s0) == float(b.s0) and float(a.ds) == float(b.ds)
+    )
 
 
 def _same_sampling(model: ResidualModel, first: ResidualModel) -> ResidualModel:

@@ -171,9 +171,16 @@ class JointProgram:
         return dataclasses.replace(self, objective=objective)
 
     def on_records(self, records) -> "JointProgram":
-        """The same runs on other track records (the same compiled program, whole runs)."""
-        program = JointProgram.build(self.problem, records, self.active)
-        return dataclasses.replace(program, jacobian_rtol=self.jacobian_rtol)
+        """The same runs on other track records (the same compiled program, whole runs): the
+        records swapped in where they lie on the problem's records' grids (the track-record
+        error's draws), else the runs built again."""
+        try:
+            runs = self._runs(self.objective).with_tracks(records)
+        except ValueError:  # records on another grid
+            program = JointProgram.build(self.problem, records, self.active)
+            return dataclasses.replace(program, jacobian_rtol=self.jacobian_rtol)
+        objective = eqx.tree_at(self._runs, self.objective, runs)
+        return dataclasses.replace(self, objective=objective).with_horizon(np.inf)
 
     def with_tracks(self, records) -> "JointProgram":
         """The same runs with `records` as the problem's track records from now on (the same
