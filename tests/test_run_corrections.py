@@ -351,3 +351,9 @@ def test_other_records_swapped_in_give_the_rebuilt_objectives_residuals(
         joint.with_tracks(shifted)
     with pytest.raises(ValueError, match="1 records for 2 runs"):
         joint.with_tracks(other[:1])
+    loop = make_joint_objective(
+        measurements, nominal, records, NAMES, settings=SETTINGS, vmap=False
+    )
+    swapped_loop = loop.residual_model.with_tracks(other)
+    for run, record in zip(swapped_loop.runs(), other):
+        np.testing.assert_array_equal(np.asarray(run.track.values), np.asarray(record.values))
