@@ -486,6 +486,8 @@ def run_cases(args, cfg) -> None:
     done = load_records(args.out, cfg)
     i, n = args.shard
     todo = [k for k in range(args.cases) if k % n == i and k not in done]
+    if args.scenarios:  # a rerun of the cases drawn with these scenarios alone
+        todo = [k for k in todo if draw_case(cfg, k)["scenario"] in args.scenarios]
     print(
         f"{args.out}: {len(done)} cases on record, {len(todo)} to run in shard {i}/{n} "
         f"with {args.workers} worker(s); imperfections: {', '.join(args.imperfections) or 'none'}",
@@ -785,6 +787,10 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--imperfection", default="default", help=f"comma-separated: {names} (default: default)"
     )
     p.add_argument("--shard", default="0/1", help="i/n: run the cases with index %% n == i")
+    p.add_argument(
+        "--scenario", dest="scenarios", default="", help="comma-separated: run only the cases "
+        f"drawn with these scenarios ({', '.join(DEFECT_SCENARIOS)}; default: every case)",
+    )  # fmt: skip
     p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     p.add_argument("--duration", type=float, default=1.0, help="run duration [s] (default 1)")
     p.add_argument("--sample-rate", type=float, default=100.0, help="[Hz] (default 100)")
@@ -851,6 +857,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     except (ValueError, AssertionError):
         raise SystemExit(f"--shard = {args.shard!r} must be i/n with 0 <= i < n") from None
     args.shard = (i, n)
+    args.scenarios = tuple(x for x in args.scenarios.split(",") if x)
+    unknown = [x for x in args.scenarios if x not in DEFECT_SCENARIOS]
+    if unknown:
+        raise SystemExit(f"--scenario {unknown[0]!r} is not one of {', '.join(DEFECT_SCENARIOS)}")
     checks = (
         ("--cases", args.cases, args.cases >= 1),
         ("--workers", args.workers, args.workers >= 1),

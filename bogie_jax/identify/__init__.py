@@ -90,3 +90,4 @@ from ._student_t import (
     t_quantile as t_quantile,
     two_sided_p_value as two_sided_p_value,
 )
+from ._vanished import restart_vanished as restart_vanished

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 
 from ..cost import channel_variances, channel_weights
-from ..identify import HostFit, levenberg_marquardt
+from ..identify import HostFit, levenberg_marquardt, restart_vanished
 from ._checks import failed_runs
 from ._elements import classify_elements, group_weights
 from ._horizon import horizon_stages, window_rows
@@ -21,6 +21,7 @@ from ._verdict import decision_z
 REWEIGHTS = 3  # at most this many refits with per-channel weights
 SETTLED = 0.1  # the weights have settled when none changes by more than this fraction
 STAGE_OFFSET_TOL = 0.3  # a horizon stage's relative-offset stop (`_horizon.py`)
+VANISHED = float(np.log(1e-3))  # a judged ln(p / nominal) below this is restarted at 0
 
 
 def select_elements(program: JointProgram, jac0, say):
@@ -62,7 +63,9 @@ def fit_over_horizon(space: FitSpace, say) -> tuple[HostFit, ...]:
     stages, each from the last estimate with the solves stopped past the stage's horizon
     (`JointProgram.with_horizon`; J from the looser solves, `with_loose_jacobian`), then of the
     whole record (`space`'s rows); where the stages end at a point whose whole-record
-    simulation fails, the whole record again from the start. The last fit is the estimate."""
+    simulation fails, the whole record again from the start; where a judged element ends
+    below 0.1 % of nominal, the whole record again with it restarted at nominal, kept where
+    it ends lower (`bogie_jax.identify.restart_vanished`). The last fit is the estimate."""
     program, max_steps = space.program, space.program.problem.options.max_steps
     phi = np.zeros(space.n_coords + program.nuisance_layout().n_extra())
     fits, stages = [], fit_stages(program)
@@ -81,6 +84,13 @@ def fit_over_horizon(space: FitSpace, say) -> tuple[HostFit, ...]:
     if fits[-1].status == "failed" and stages:
         say("the stages' estimate fails on the whole record: fitting it from the start")
         fits.append(levenberg_marquardt(space.evaluate, np.zeros_like(phi), max_steps=max_steps))
+    judged = range(space.n_coords)
+    revived = restart_vanished(
+        space.evaluate, fits[-1], judged, level=VANISHED, max_steps=max_steps
+    )
+    if revived is not fits[-1]:
+        say("an element fitted at nearly zero: restarted at nominal, the fit ends lower")
+        fits.append(revived)
     return tuple(fits)
 
 
