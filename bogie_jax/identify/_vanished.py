@@ -1,16 +1,15 @@
 """`restart_vanished`: a least-squares fit in log coordinates repeated with the coordinates that
 ran to zero restarted at their reference.
 
-In a log coordinate phi = ln(p / p_ref) the Jacobian's column is dr/dphi = p dr/dp: it shrinks
-with p. A fit whose path takes a parameter towards zero (a damper's, while the other
-parameters are still far from their optimum) leaves it there: at phi = -20 the parameter is
-2e-9 of its reference, the cost is flat in phi for many units around, and a step of the
-largest size a fit allows (a factor e in p, `levenberg_marquardt`'s `max_step`) changes nothing
-the data can tell apart, so the fit stops with phi where it is, whatever the data say. The
-rest of the fit then settles around the stranded parameter, in a minimum of its own
+In a log coordinate phi = ln(p / p_ref) a parameter can run to zero (phi -> -inf): where, with
+the other parameters where the fit's path has left them, any amount of it raises the cost (a
+damper's, while the others are still far from their optimum), the fit has a minimum on the
+boundary p -> 0 and ends there, the cost flat in phi for many units (at phi = -20, p is 2e-9 of
+its reference). A lower minimum may lie with the parameter at a finite value and the others
+elsewhere, which the fit cannot reach from the boundary: every small move raises the cost
 (docs/history.md: a lost anti-yaw damper of the detection benchmark). Restarting those
-coordinates at the reference is a second local fit from a point the first cannot reach; it is
-kept only where it ends lower.
+coordinates at the reference, the others as fitted, is a second local fit from a point the
+first cannot reach; it is kept only where it ends lower.
 """
 
 from collections.abc import Callable, Iterable
