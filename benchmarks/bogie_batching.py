@@ -23,13 +23,11 @@ Writes `results/bogie_batching/vmap_and_threads.{json,md}`.
 """
 
 import argparse
-import importlib.util
 import json
 import os
 import statistics
 import time
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -40,20 +38,13 @@ from bogie_jax.cost import make_joint_objective, residual_jacobian
 from bogie_jax.monitor import check_candidates, check_nuisance, monitor
 
 
-ROOT = Path(__file__).resolve().parents[1]
 NAME = "bogie_batching/vmap_and_threads"
-
-
-def _detection():
-    spec = importlib.util.spec_from_file_location("detection", ROOT / "benchmarks" / "detection.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def case_inputs(count: int, duration: float) -> list[dict]:
     """The detection benchmark's cases 1..count (seed 0, 0.3 mm told)."""
-    detection = _detection()
+    import detection  # the sibling script: its case generator (it sets its process up)
+
     args = detection.parse_args(["--duration", f"{duration}", "--track-error", "0.3"])
     cfg = detection.config_of(args)
     return [detection.case_inputs(cfg, i) for i in range(1, count + 1)]
