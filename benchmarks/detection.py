@@ -209,6 +209,7 @@ def config_of(args) -> dict:
         **({"fit_contact": args.fit_contact} if args.fit_contact is not None else {}),
         **({"fit_wear": args.fit_wear} if args.fit_wear is not None else {}),
         **({"jacobian": args.jacobian} if args.jacobian != "full" else {}),
+        **({"refit_model": args.refit_model} if args.refit_model != "none" else {}),
         **_mismatch.config(args.imperfections, args.drift_band),
     }
 
@@ -242,6 +243,15 @@ def _jacobian_option(jacobian: str) -> dict:
     measured as a baseline, whose Jacobians are all the full model's, whatever `jacobian`)."""
     known = {f.name for f in dataclasses.fields(MonitorOptions)}
     return {"jacobian": jacobian} if "jacobian" in known else {}
+
+
+def _refit_option(refit: str) -> dict:
+    """`MonitorOptions`' `refit_model` keyword (`none`: no refit); none for a package without
+    it (an earlier commit, which never refits)."""
+    known = {f.name for f in dataclasses.fields(MonitorOptions)}
+    if "refit_model" not in known:
+        return {}
+    return {"refit_model": nonlinear_options() if refit == "nonlinear" else None}
 
 
 def case_inputs(cfg: dict, index: int) -> dict:
@@ -294,6 +304,7 @@ def case_inputs(cfg: dict, index: int) -> dict:
         nuisance=None if nuisance is None else tuple(nuisance),
         model=nonlinear_options() if cfg.get("fit_model") == "nonlinear" else ModelOptions(),
         **_jacobian_option(cfg.get("jacobian", "full")),
+        **_refit_option(cfg.get("refit_model", "none")),
     )  # fmt: skip
     return dict(
         case=case, nominal=nominal, truth=truth, scenario=bogie["scenario"],
@@ -834,6 +845,11 @@ def parse_args(argv=None) -> argparse.Namespace:
         "--jacobian", choices=("small-motion", "full"), default="small-motion",
         help="the model of the monitor's Jacobians (`MonitorOptions.jacobian`; records without "
         "this key in their configuration were judged with `full`)",
+    )  # fmt: skip
+    p.add_argument(
+        "--refit-model", choices=("nonlinear", "none"), default="nonlinear",
+        help="the model fitted where the first fit does not explain the data "
+        "(`MonitorOptions.refit_model`; records without this key in their configuration: none)",
     )  # fmt: skip
     p.add_argument("--false-alarm-rate", type=float, default=0.05)
     p.add_argument("--out", default=None, help="results stem (default from the imperfections)")

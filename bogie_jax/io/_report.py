@@ -208,8 +208,20 @@ def _rules(record) -> list[str]:
         "nominal bogie; elements the sensors cannot separate are judged as their group and held "
         "at nominal otherwise.",
         _standard_errors(fit),
+        *_model(fit),
         f"- Full rules: {RULES}.",
     ]
+
+
+def _model(fit) -> list[str]:
+    """The fitted model's line, where the fit record names it."""
+    if not fit.get("model"):
+        return []
+    why = (
+        ", fitted because the configured model did not explain the data (its goodness-of-fit "
+        "test failed); this one does"
+    )
+    return [f"- Model: {fit['model']}{why if fit.get('model_refit') else ''}."]
 
 
 def _standard_errors(fit) -> str:

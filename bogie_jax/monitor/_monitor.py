@@ -19,8 +19,9 @@ The steps, each a function that takes what the last one returned:
 7. `_judgement.statistics` and `judge_*`: the covariance by the covariance rule, a verdict per
    coordinate (`_verdict.judge`, profile tests by `_profile.py`);
 8. `_goodness.fit_goodness`: does the fit explain the data, per run and channel group; where
-   it does not, `_suspects.screen` names the elements not judged that would explain it and
-   withholds an alarm that does not hold with them free;
+   it does not, steps 2 to 8 are repeated with the nonlinear model (`_model_refit.py`) and its
+   verdicts kept where it does; else `_suspects.screen` names the elements not judged that
+   would explain it and withholds an alarm that does not hold with them free;
 9. `summarise`: the `FitSummary` and every run's `RunStatus`.
 
 Steps 3 to 9 are numpy on the residuals and Jacobian the one compiled program returns.
@@ -46,6 +47,7 @@ from ._judgement import (
     judge_unidentifiable,
     statistics,
 )
+from ._model_refit import model_name, refit_problem
 from ._nuisance import check_nuisance
 from ._options import MonitorOptions
 from ._program import FitSpace, JointProgram, MonitorProblem
@@ -79,16 +81,31 @@ def monitor(
     tic = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
     problem = prepare(measurements, tracks, params, options)
+    outcome = judge(problem, say)
+    refit = None if outcome.explained else refit_problem(problem)
+    if refit is not None:
+        first = model_name(problem.options.model)
+        say(f"the {first} model does not explain the data: fitting the model with "
+            f"{model_name(refit.options.model)}")  # fmt: skip
+        first_s = time.perf_counter() - tic
+        again = judge(refit, say)
+        if again.explained:
+            return summarise(again, _total(tic) | {"first_model_s": first_s}, model_refit=True)
+        say(f"that model does not explain them either: the {first} model's verdicts stand")
+    return summarise(screened(outcome, say), _total(tic))
+
+
+def judge(problem: MonitorProblem, say) -> "_Outcome":
+    """Steps 2 to 8 before the suspects: the verdicts on `problem` and the goodness of fit."""
     program, jac0, reasons, timings = first_jacobian(problem, say)
     coords, statuses, a = select_elements(program, jac0, say)
     space = FitSpace.of(program, a, problem.options.remove_bias)
     t0 = time.perf_counter()
     if not coords:
-        timings["fit_s"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        verdicts = judge_unidentifiable(space, statuses, 0)
+        verdicts = tuple(judge_unidentifiable(space, statuses, 0))
+        timings["fit_s"] = 0.0
         timings["verdicts_s"] = time.perf_counter() - t0
-        return summarise(space, statuses, tuple(verdicts), None, reasons, timings | _total(tic))
+        return _Outcome(space, statuses, verdicts, None, reasons, timings)
     space, fits, reasons = fit_runs(space, reasons, say)
     done = reweight(space, fits[-1], say)
     timings["fit_s"] = time.perf_counter() - t0
@@ -105,15 +122,27 @@ def monitor(
     verdicts += judge_unidentifiable(done.space, statuses, len(coords))
     timings["verdicts_s"] = time.perf_counter() - t0
     goodness = fit_goodness(done.space, done.fit, effect)
-    if not goodness.explained:
-        t0 = time.perf_counter()
-        mixed = mixed_record_term(effect)  # the misfit the chosen shape leaves, if it differs
-        left = None if mixed is effect else fit_goodness(done.space, done.fit, mixed)
-        goodness, verdicts = screen(done.space, done.fit, len(coords), verdicts, goodness,
-                                    stats.s2, say, left=left)  # fmt: skip
-        timings["suspects_s"] = time.perf_counter() - t0
     judged = _Judged(coords, fits + done.refits, done, estimate, stats, goodness)
-    return summarise(done.space, statuses, tuple(verdicts), judged, reasons, timings | _total(tic))
+    return _Outcome(done.space, statuses, tuple(verdicts), judged, reasons, timings)
+
+
+def screened(outcome: "_Outcome", say) -> "_Outcome":
+    """Step 8's suspects: where the fit does not explain the data, the elements not judged that
+    would (`_suspects.screen`), and the verdicts scaled for the misfit and checked with them
+    free; `outcome` itself where it does."""
+    judged = outcome.judged
+    if outcome.explained:
+        return outcome
+    t0 = time.perf_counter()
+    done, effect = judged.reweighted, judged.estimate.track_effect
+    mixed = mixed_record_term(effect)  # the misfit the chosen shape leaves, if it differs
+    left = None if mixed is effect else fit_goodness(done.space, done.fit, mixed)
+    goodness, verdicts = screen(done.space, done.fit, len(judged.coords), list(outcome.verdicts),
+                                judged.goodness, judged.stats.s2, say, left=left)  # fmt: skip
+    return dataclasses.replace(
+        outcome, verdicts=tuple(verdicts), judged=dataclasses.replace(judged, goodness=goodness),
+        timings=outcome.timings | {"suspects_s": time.perf_counter() - t0},
+    )  # fmt: skip
 
 
 def compile_programs(measurements, tracks=None, *, params=None, options=None) -> None:
@@ -194,21 +223,41 @@ class _Judged:
     goodness: object = None  # `_goodness.GoodnessOfFit`
 
 
-def summarise(space: FitSpace, statuses, verdicts, judged, reasons, timings) -> MonitorResult:
-    """Step 8: the `MonitorResult` (`judged`: `None` where no element is identifiable)."""
-    p = space.program.problem
+@dataclasses.dataclass(frozen=True)
+class _Outcome:
+    """The verdicts on one problem before the summary: the fit space, every candidate's status,
+    the verdicts, what the fit left (`None` where no element is identifiable), each run's reason
+    for being left out and the timings."""
+
+    space: FitSpace
+    statuses: tuple
+    verdicts: tuple
+    judged: _Judged | None
+    reasons: tuple
+    timings: dict
+
+    @property
+    def explained(self) -> bool:
+        """False where the goodness-of-fit test fails (`_goodness.py`)."""
+        return self.judged is None or self.judged.goodness.explained
+
+
+def summarise(outcome: _Outcome, timings: dict, *, model_refit: bool = False) -> MonitorResult:
+    """Step 9: the `MonitorResult`, the outcome's timings updated by `timings`; `model_refit`:
+    the outcome is `MonitorOptions.refit_model`'s (`_model_refit.py`)."""
+    space, judged = outcome.space, outcome.judged
     return MonitorResult(
-        verdicts=verdicts,
-        elements=tuple(statuses),
-        fit=fit_summary(space, judged),
-        runs=run_statuses(space, judged, reasons),
-        false_alarm_rate=float(p.options.false_alarm_rate),
-        timings=timings,
+        verdicts=outcome.verdicts,
+        elements=tuple(outcome.statuses),
+        fit=fit_summary(space, judged, model_refit),
+        runs=run_statuses(space, judged, outcome.reasons),
+        false_alarm_rate=float(space.program.problem.options.false_alarm_rate),
+        timings=outcome.timings | timings,
         goodness=None if judged is None else judged.goodness,
     )
 
 
-def fit_summary(space: FitSpace, judged: "_Judged | None") -> FitSummary:
+def fit_summary(space: FitSpace, judged: _Judged | None, model_refit: bool) -> FitSummary:
     """The `FitSummary` of the last fit (module docstring of `_result.py`)."""
     o, active = space.program.problem.options, space.program.active
     nan = float("nan")
@@ -216,6 +265,7 @@ def fit_summary(space: FitSpace, judged: "_Judged | None") -> FitSummary:
         runs_used=int(active.sum()), noise=o.noise.name, covariance=o.covariance_rule.name,
         bias_removed=bool(o.remove_bias), track_error=o.track_error,
         run_corrections=space.program.nuisance_layout().corrections,
+        model=model_name(o.model), model_refit=model_refit,
     )  # fmt: skip
     if judged is None:
         return FitSummary(

@@ -18,6 +18,7 @@ from ..runtime.solve_settings import SolveSettings
 from ._checks import RUN_MISFIT
 from ._elements import MAX_CORRELATION, RESOLUTION
 from ._horizon import HORIZON_START
+from ._imperfections import nonlinear_options
 from ._verdict import check_false_alarm_rate
 
 
@@ -66,6 +67,12 @@ class MonitorOptions:
       `"small-motion"` (the equations of motion linearised about the rest state,
       `bogie_jax.small_motion`) or `"full"` (the equations of motion, with `jacobian_rtol`).
       The residuals, and so the cost every step is accepted on, are the full model's in both.
+    - `refit_model`: the `ModelOptions` fitted where `model`'s fit does not explain the data
+      (`_goodness.py`): every step from the first Jacobian on repeated with it, and its
+      verdicts kept where that fit explains the data (`FitSummary.model_refit`), else the
+      first fit's (`_model_refit.py`). Default: creep saturation and blow-off anti-yaw dampers
+      (`nonlinear_options()`), the wheel-rail and damper nonlinearities a linear fit of
+      in-service data leaves; `None`: no refit.
     """
 
     candidates: tuple[str, ...] | None = None
@@ -88,6 +95,7 @@ class MonitorOptions:
     weights: object = None
     jacobian_rtol: float | None = JACOBIAN_RTOL
     jacobian: str = "small-motion"
+    refit_model: ModelOptions | None = dataclasses.field(default_factory=nonlinear_options)
 
     def __post_init__(self):
         set_ = lambda name, value: object.__setattr__(self, name, value)
@@ -111,6 +119,9 @@ class MonitorOptions:
             raise ValueError(f"`jacobian` = {self.jacobian!r} must be one of {JACOBIANS}")
         if not isinstance(self.model, ModelOptions):
             raise TypeError(f"`model` must be a ModelOptions, got {type(self.model).__name__}")
+        if self.refit_model is not None and not isinstance(self.refit_model, ModelOptions):
+            got = type(self.refit_model).__name__
+            raise TypeError(f"`refit_model` must be None or a ModelOptions, got {got}")
         if self.settings is not None and not isinstance(self.settings, SolveSettings):
             got = type(self.settings).__name__
             raise TypeError(f"`settings` must be None or a SolveSettings, got {got}")

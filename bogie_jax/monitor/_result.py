@@ -65,6 +65,11 @@ def misfit_warning(misfit_ratio) -> str:
     )
 
 
+REFIT_NOTE = (
+    "model: {model}, fitted because the configured model did not explain the data (this one does)"
+)
+
+
 @dataclasses.dataclass(frozen=True)
 class FitSummary:
     """The joint fit: fitted coordinate `names`, LM `status` (`converged`, `max_steps`,
@@ -92,7 +97,10 @@ class FitSummary:
     `track_error_long_wave_share`: the share taken as long-wave drift (`_record_shape.py`; above
     0 where the data hold far less misfit than a track-shaped error leaves);
     `track_records_calibrated`: whether the fit was repeated on records calibrated for the white
-    share (`_record_calibration.py`; False where the share is 0 or that fit failed)."""
+    share (`_record_calibration.py`; False where the share is 0 or that fit failed); `model`:
+    the fitted model's nonlinear options in words (`_model_refit.model_name`: "linear" with
+    none); `model_refit`: this fit is `MonitorOptions.refit_model`'s, made because the
+    options' `model` did not explain the data, and kept because it does (`_model_refit.py`)."""
 
     names: tuple[str, ...]
     status: str
@@ -120,6 +128,8 @@ class FitSummary:
     track_error_white_share: float = 0.0
     track_error_long_wave_share: float = 0.0
     track_records_calibrated: bool = False
+    model: str = "linear"
+    model_refit: bool = False
 
     @property
     def explains_data(self) -> bool:
@@ -231,6 +241,8 @@ class MonitorResult:
                 "errors (the residuals hold far less misfit than an error shaped like the track "
                 "leaves)"
             )
+        if self.fit.model_refit:
+            rows.append(REFIT_NOTE.format(model=self.fit.model))
         warning = misfit_warning(self.fit.misfit_ratio)
         if warning:
             rows.append(warning)
