@@ -81,21 +81,33 @@ def monitor(
     tic = time.perf_counter()
     say = progress if progress is not None else (lambda line: None)
     problem = prepare(measurements, tracks, params, options)
-    outcome = judge(problem, say)
-    refit = None if outcome.explained else refit_problem(problem)
+    outcome = judge_problem(problem, say)
+    refit = None if outcome.fits_every_run else refit_problem(problem)
     if refit is not None:
         first = model_name(problem.options.model)
         say(f"the {first} model does not explain the data: fitting the model with "
             f"{model_name(refit.options.model)}")  # fmt: skip
-        first_s = time.perf_counter() - tic
-        again = judge(refit, say)
-        if again.explained:
-            return summarise(again, _total(tic) | {"first_model_s": first_s}, model_refit=True)
+        t0 = time.perf_counter()
+        again = _refit_outcome(refit, say)
+        if again is not None and again.fits_every_run:
+            first_s = {"first_model_s": t0 - tic}
+            return summarise(again, _total(tic) | first_s, model_refit=True)
+        outcome.timings["refit_s"] = time.perf_counter() - t0
         say(f"that model does not explain them either: the {first} model's verdicts stand")
     return summarise(screened(outcome, say), _total(tic))
 
 
-def judge(problem: MonitorProblem, say) -> "_Outcome":
+def _refit_outcome(problem: MonitorProblem, say) -> "_Outcome | None":
+    """`judge_problem(problem)`; `None` where every run's simulation fails at the nominal bogie
+    with the refit's model (the first model's verdicts then stand)."""
+    try:
+        return judge_problem(problem, say)
+    except RuntimeError as error:
+        say(f"the refit stopped: {error}")
+        return None
+
+
+def judge_problem(problem: MonitorProblem, say) -> "_Outcome":
     """Steps 2 to 8 before the suspects: the verdicts on `problem` and the goodness of fit."""
     program, jac0, reasons, timings = first_jacobian(problem, say)
     coords, statuses, a = select_elements(program, jac0, say)
@@ -240,6 +252,11 @@ class _Outcome:
     def explained(self) -> bool:
         """False where the goodness-of-fit test fails (`_goodness.py`)."""
         return self.judged is None or self.judged.goodness.explained
+
+    @property
+    def fits_every_run(self) -> bool:
+        """The fit explains the data and leaves no run out (`_checks.failed_runs`)."""
+        return self.explained and not any(self.reasons)
 
 
 def summarise(outcome: _Outcome, timings: dict, *, model_refit: bool = False) -> MonitorResult:
