@@ -37,7 +37,9 @@ joint Jacobian serve every case of a process (speeds, seeds and values are trace
   error white within 3-70 m wavelengths at 0.1-0.3 mm RMS), `track-drift` (i: a long-wave
   record error, 70-200 m at 0.3-1 mm RMS; in both the monitor is told only the RMS),
   `unjudged-defect` (j: a defect of an element that is not a candidate, in half of the
-  defective cases together with the candidate defect);
+  defective cases together with the candidate defect), `nonlinear-laws` (d', with `nonlinear`:
+  the data's friction coefficient and anti-yaw damper relief laws unlike the monitor's
+  nonlinear model's);
 - `none`: no imperfection; `all`: (a)-(f); `offset` is another name of `track`.
 
 **Per case** (`monitor(measurements, tracks=<recorded tracks>, params=nominal (on the mode's
@@ -71,8 +73,8 @@ deviation; the Gauss-Newton standard error is the Cramer-Rao bound of an unbiase
 from these data and this track record), in all and of its residual term alone (without the
 track record's error); the same per group, and for the groups whose members' true values are
 equal apart from those whose members differ (where the weights matter); issue 51's figures
-(`_mismatch.report`): no alarm on a healthy element, the 50 % anti-yaw damper found, the "not
-explained" rate, coverage per element, size error, and for `unjudged-defect` the "not
+(`_mismatch_report.report`): no alarm on a healthy element, the 50 % anti-yaw damper found,
+the "not explained" rate, coverage per element, size error, and for `unjudged-defect` the "not
 explained" rate where the unjudged defect changes the signals by more than the noise. Rates
 carry Wilson 95 % intervals.
 
@@ -138,7 +140,7 @@ from bogie_jax.params import ModelOptions, manchester_benchmark
 
 # after the package: a process given another checkout's package (monitor_time.py) keeps it
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks import _mismatch, _paired  # noqa: E402
+from benchmarks import _mismatch, _mismatch_report, _paired  # noqa: E402
 from benchmarks._cases import (  # noqa: E402
     clean_runs,
     record_tracks,
@@ -351,6 +353,7 @@ def run_case(cfg: dict, index: int) -> dict:
         "track_error_white_share": result.fit.track_error_white_share,
         "track_error_long_wave_share": result.fit.track_error_long_wave_share,
         "track_records_calibrated": result.fit.track_records_calibrated,
+        "model": getattr(result.fit, "model", "linear"),
         "channel_noise": [list(c) for c in result.fit.channel_noise],
         "nuisance": {
             name: {key: float(p[key]) for key in ("estimate", "std_error", "nominal")}
@@ -499,6 +502,8 @@ def run_cases(args, cfg) -> None:
     todo = [k for k in range(args.cases) if k % n == i and k not in done]
     if args.scenarios:  # a rerun of the cases drawn with these scenarios alone
         todo = [k for k in todo if draw_case(cfg, k)["scenario"] in args.scenarios]
+    if args.only:  # a rerun of these cases alone
+        todo = [k for k in todo if k in args.only]
     print(
         f"{args.out}: {len(done)} cases on record, {len(todo)} to run in shard {i}/{n} "
         f"with {args.workers} worker(s); imperfections: {', '.join(args.imperfections) or 'none'}",
@@ -678,7 +683,7 @@ def aggregate(records: dict[int, dict], cfg: dict) -> tuple[dict, str]:
     )  # fmt: skip
     imps = ", ".join(cfg["imperfections"]) or "none"
     md_targets = targets(summary)
-    summary["mismatch"], mismatch_md = _mismatch.report(
+    summary["mismatch"], mismatch_md = _mismatch_report.report(
         ok, [case_outcome(r) for r in ok], summary["by_element"], HEADLINE, rate
     )
     md = [
@@ -786,6 +791,14 @@ def _s(x):
     return "-" if x is None else f"{x:.0f} s"
 
 
+def _indices(text: str) -> tuple[int, ...]:
+    """`--only`'s case indices, comma-separated."""
+    try:
+        return tuple(int(x) for x in text.split(",") if x)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of cases")
+
+
 def parse_args(argv=None) -> argparse.Namespace:
     """The command line's arguments, checked (`SystemExit` naming one out of range), with the
     imperfections, nuisance names, ranges, case count, results stem and shard resolved."""
@@ -801,6 +814,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument(
         "--scenario", dest="scenarios", default="", help="comma-separated: run only the cases "
         f"drawn with these scenarios ({', '.join(DEFECT_SCENARIOS)}; default: every case)",
+    )  # fmt: skip
+    p.add_argument(
+        "--only", type=_indices, default=(), metavar="I,J,...",
+        help="run only these cases (default: every case)",
     )  # fmt: skip
     p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     p.add_argument("--duration", type=float, default=1.0, help="run duration [s] (default 1)")

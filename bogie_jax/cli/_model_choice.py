@@ -63,8 +63,15 @@ def add_fit_model(p) -> None:
         "--fit-model",
         default="linear",
         choices=tuple(FIT_MODELS),
-        help="--data: the equations fitted (default linear; nonlinear: creep saturation and "
-        "blow-off anti-yaw dampers, several times slower)",
+        help="--data: the equations fitted (default linear, fitted again with the nonlinear "
+        "model where it does not explain the data; nonlinear: creep saturation and blow-off "
+        "anti-yaw dampers, several times slower)",
+    )
+    p.add_argument(
+        "--no-model-refit",
+        action="store_true",
+        help="--data: keep the first fit where it does not explain the data (no fit of the "
+        "nonlinear model there)",
     )
 
 

@@ -238,7 +238,8 @@ def run(args, progress) -> int:
         progress=lambda line: progress.say(f"  {line}"),
     )  # fmt: skip
     progress.say(verdict_table(result))
-    fitted = fitted_signals(result, measurements, tracks, params, progress)
+    equations = options.fitted_model(result.fit.model_refit)
+    fitted = fitted_signals(result, measurements, tracks, params, progress, equations=equations)
     truth = _truth(scenario, params)
     check = truth_check(result, scenario, params)
     progress.say(check.replace("`", ""))

@@ -195,6 +195,7 @@ def run_data(args, progress) -> int:
             noise=lookup("noise", args.noise),
             covariance=None if args.covariance is None else lookup("covariance", args.covariance),
             model=fit_model(args.fit_model),
+            **({"refit_model": None} if args.no_model_refit else {}),
         )
         result = monitor(
             measurements,
@@ -209,12 +210,13 @@ def run_data(args, progress) -> int:
         progress.say(f"bogie-jax monitor: {e}")
         return 1
     progress.say(verdict_table(result))
-    fitted = fitted_signals(result, measurements, tracks, params, progress, equations=options.model)
+    equations = options.fitted_model(result.fit.model_refit)
+    fitted = fitted_signals(result, measurements, tracks, params, progress, equations=equations)
     source = "bogie-jax monitor --data " + " ".join(args.data)
     extra = {
         "data": list(args.data), "contact": args.contact, "wear": args.wear,
         "wheel_profile": args.wheel_profile, "flange_back_mm": args.flange_back,
-        "fit_model": args.fit_model,
+        "fit_model": args.fit_model, "model_refit_allowed": not args.no_model_refit,
     }  # fmt: skip
     paths = write_outputs(
         args.out, result, measurements, fitted, date=date, source=source, notes=[],

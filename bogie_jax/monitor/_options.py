@@ -133,6 +133,11 @@ class MonitorOptions:
             return self.covariance
         return GaussNewtonCovariance() if self.track_error > 0 else SandwichCovariance()
 
+    def fitted_model(self, model_refit: bool) -> ModelOptions:
+        """The model a result was fitted with: `refit_model` where its fit was refitted
+        (`FitSummary.model_refit`), else `model`."""
+        return self.refit_model if model_refit else self.model
+
     def solve_settings(self) -> SolveSettings:
         """`settings` (default `SolveSettings.for_objective()`) with `throw=False`: a failed
         solve leaves its run out instead of stopping every run of the vmapped program."""
