@@ -63,7 +63,13 @@ from bogie_jax.monitor import (
     with_speed_error,
     worn_wheels,
 )
-from bogie_jax.params import element_names, get_parameter, manchester_benchmark, parameter_specs
+from bogie_jax.params import (
+    element_names,
+    get_parameter,
+    manchester_benchmark,
+    parameter_specs,
+    set_parameters,
+)
 from bogie_jax.simulation import SolveSettings
 from bogie_jax.track import TrackReference
 
@@ -491,13 +497,18 @@ def test_monitor_names_data_it_does_not_explain_and_withholds_alarms():
 
 def test_monitor_fits_the_nonlinear_model_where_the_linear_one_does_not_explain_the_data():
     """Data with creep saturation and blow-off anti-yaw dampers (`nonlinear_options`) of a bogie
-    whose left anti-yaw damper works at 50 %, noise 1 % of each channel's RMS: the linear fit
+    whose left anti-yaw damper works at 50 %, on a wet rail (friction 0.2, the model's nominal
+    0.3), noise 1 % of each channel's RMS: the linear fit
     leaves the 50 m/s run out as not explained, the fit repeated with the nonlinear model
-    explains both runs, and its verdicts are the result's: the damper an alarm whose 95 %
-    interval holds the true damping (the simulation's), every other element healthy. With
+    explains both runs with the friction fitted, and its verdicts are the result's: the damper
+    an alarm whose 95 % interval holds the true damping (the simulation's), every other element
+    healthy. With
     `refit_model=None` the linear fit is the result, on one run, its damper's interval missing
     the truth (measured 2026-12-08: 2.076e5 [2.027e5, 2.126e5] N s/m against 2e5)."""
-    clean = scenario_measurements("yaw-damper-left-50", RUNS, options=nonlinear_options())
+    wet = set_parameters(manchester_benchmark(), {"contact.friction": 0.2})  # nominal: 0.3
+    clean = scenario_measurements(
+        "yaw-damper-left-50", RUNS, params=wet, options=nonlinear_options()
+    )
     data = with_channel_noise(clean, 0.01, key=jr.PRNGKey(0))
     lines = []
     result = monitor(data, progress=lines.append)
@@ -505,6 +516,8 @@ def test_monitor_fits_the_nonlinear_model_where_the_linear_one_does_not_explain_
     assert result.explained and result.fit.model_refit, result.table()
     assert result.fit.model == "creep saturation, blow-off anti-yaw dampers"
     assert "first_model_s" in result.timings
+    friction = result.fit.nuisance["contact.friction"]  # the law's parameter, fitted
+    assert abs(friction["estimate"] - 0.2) < 3 * friction["std_error"], friction
     damper = result.verdict("yaw_dampers.left.c")
     truth = 0.5 * float(get_parameter(manchester_benchmark(), "yaw_dampers.left.c"))
     assert damper.verdict in ALARMS and damper.ci95[0] <= truth <= damper.ci95[1], damper

@@ -68,11 +68,12 @@ class MonitorOptions:
       `bogie_jax.small_motion`) or `"full"` (the equations of motion, with `jacobian_rtol`).
       The residuals, and so the cost every step is accepted on, are the full model's in both.
     - `refit_model`: the `ModelOptions` fitted where `model`'s fit does not explain the data
-      (`_goodness.py`): every step from the first Jacobian on repeated with it, and its
-      verdicts kept where that fit explains the data (`FitSummary.model_refit`), else the
-      first fit's (`_model_refit.py`). Default: creep saturation and blow-off anti-yaw dampers
-      (`nonlinear_options()`), the wheel-rail and damper nonlinearities a linear fit of
-      in-service data leaves; `None`: no refit.
+      (`_goodness.py`) or leaves a run out: every step from the first Jacobian on repeated with
+      it, its laws' parameters fitted as nuisance and every Jacobian the full model's, and its
+      verdicts kept where that fit explains the data with every run (`FitSummary.model_refit`),
+      else the first fit's (`_model_refit.py`). Default: creep saturation and blow-off
+      anti-yaw dampers (`nonlinear_options()`), the wheel-rail and damper nonlinearities a
+      linear fit of in-service data leaves; `None`: no refit.
     """
 
     candidates: tuple[str, ...] | None = None
