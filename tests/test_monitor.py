@@ -498,13 +498,11 @@ def test_monitor_names_data_it_does_not_explain_and_withholds_alarms():
 def test_monitor_fits_the_nonlinear_model_where_the_linear_one_does_not_explain_the_data():
     """Data with creep saturation and blow-off anti-yaw dampers (`nonlinear_options`) of a bogie
     whose left anti-yaw damper works at 50 %, on a wet rail (friction 0.2, the model's nominal
-    0.3), noise 1 % of each channel's RMS: the linear fit
-    leaves the 50 m/s run out as not explained, the fit repeated with the nonlinear model
-    explains both runs with the friction fitted, and its verdicts are the result's: the damper
-    an alarm whose 95 % interval holds the true damping (the simulation's), every other element
-    healthy. With
-    `refit_model=None` the linear fit is the result, on one run, its damper's interval missing
-    the truth (measured 2026-12-08: 2.076e5 [2.027e5, 2.126e5] N s/m against 2e5)."""
+    0.3), noise 1 % of each channel's RMS: the linear fit does not explain both runs, the fit
+    repeated with the nonlinear model does, its friction fitted (the simulation's within three
+    standard errors), and its verdicts are the result's: the damper an alarm whose 95 %
+    interval holds the true damping, every other element healthy. With `refit_model=None` the
+    linear fit is the result: a run left out, or the data not explained."""
     wet = set_parameters(manchester_benchmark(), {"contact.friction": 0.2})  # nominal: 0.3
     clean = scenario_measurements(
         "yaw-damper-left-50", RUNS, params=wet, options=nonlinear_options()

@@ -219,7 +219,7 @@ def _model(fit) -> list[str]:
         return []
     why = (
         ", fitted because the configured model did not explain the data (its goodness-of-fit "
-        "test failed); this one does"
+        "test failed or a run was left out); this one does"
     )
     return [f"- Model: {fit['model']}{why if fit.get('model_refit') else ''}."]
 
