@@ -17,12 +17,12 @@ same; the nuisance parameters gain the laws' own (`LAW_PARAMETERS`: the friction
 the dampers' relief velocity and their damping above it), which no one knows in service
 (friction 0.1-0.5 from wet to dry rail): on data whose laws were 0.5-1.5 times the nominal
 friction and 0.6-1.6 and 0.5-2 times the nominal relief (`nonlinear-laws`), a refit at the
-nominal laws explained 3 of 50 cases. Their effect vanishes at rest, where the
-small-motion model is linearised, so the refit takes every Jacobian from the equations of
-motion (`MonitorOptions.jacobian="full"`). Where the refit does not
-explain the data either (an element outside the candidates changed, a profile the cone cannot
-follow), the first model's judgement stands, screened for suspects (`_suspects.py`); the refit
-does not decide between two models that both fail.
+nominal laws explained 3 of 50 cases. Their effect vanishes at rest, where the small-motion
+model is linearised, so the refit takes every Jacobian from the equations of motion
+(`MonitorOptions.jacobian="full"`). Where the refit does not explain the data either (an
+element outside the candidates changed, a profile the cone cannot follow), the first model's
+judgement stands, screened for suspects (`_suspects.py`); the refit does not decide between two
+models that both fail.
 """
 
 import dataclasses
